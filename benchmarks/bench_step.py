@@ -1,0 +1,273 @@
+"""Benchmark of the observation model (eq. 1) and of one whole filter step, against NumPy + cKDTree.
+
+What it measures, for each ``(particles P, measurements M)`` size (default 500x1024 and 1000x4096), k = 10:
+
+* ``particle_weights``: ``heatpf_jax.particle_weights(particles, measurements, k=k)`` under ``jax.jit``
+  (dense P x M distance matrix + ``lax.top_k``);
+* ``cKDTree build+query`` / ``cKDTree total``: a NumPy + ``scipy.spatial.cKDTree`` implementation of the
+  same model on the same inputs (tree on the valid measurement positions, ``query(particles, k, workers=-1)``;
+  "total" adds the masking and the sum of ``weight / max(distance, 0.01)``). Its weights are checked against
+  ours (max relative difference, tolerance 1e-5);
+* ``step, heat map``: ``heatpf_jax.step`` under ``jax.jit`` with ``FilterConfig(num_particles=P,
+  max_measurements=M, k_max=k)`` on a 200x150 heat map whose blob yields more than M pixels above the
+  threshold (projection, buffer replacement, weighting, estimate, resampling, explorers);
+* ``step, no heat map``: the same step with ``has_heatmap=False`` (the buffer ages instead).
+
+Every timing is ``time.perf_counter`` around one call (``block_until_ready`` for JAX), after compilation
+and a few warm-up calls; the table gives the median and the interquartile range over ``--repeats`` calls
+and the first-call (compile) time of the JAX functions. Steps use a fresh PRNG key per call and the same
+state (one that already holds a full measurement buffer).
+
+Run it from the repository root::
+
+    .venv/bin/python benchmarks/bench_step.py [--repeats N] [--sizes 500x1024,1000x4096] [--k 10]
+
+It exits with status 1 if the cKDTree weights disagree with ours.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy
+from scipy.spatial import cKDTree
+
+import heatpf_jax as hp
+
+HEATMAP_SHAPE = (150, 200)  # rows, columns: the paper's 200 x 150 heat map
+INTRINSICS = (143.0, 143.0, 99.5, 74.5)
+CAMERA = {"height": 0.6, "pitch": 0.5}
+PLANE_HEIGHT = 0.075  # ball radius, metres
+MIN_DISTANCE = 0.01
+RTOL = 1e-5
+WARMUP = 3
+
+
+def parse_sizes(text: str) -> list[tuple[int, int]]:
+    sizes = []
+    for item in text.split(","):
+        try:
+            p, m = (int(v) for v in item.lower().split("x"))
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(f"size {item!r}: expected PxM, e.g. 500x1024") from err
+        if p < 1 or m < 1:
+            raise argparse.ArgumentTypeError(f"size {item!r}: both numbers must be positive")
+        sizes.append((p, m))
+    return sizes
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def make_heatmap(seed: int = 0) -> np.ndarray:
+    """A broad blob in the lower half of the image plus a little activation noise, in [0, 1]."""
+    rng = np.random.default_rng(seed)
+    h, w = HEATMAP_SHAPE
+    vv, uu = np.mgrid[0:h, 0:w]
+    heat = 0.95 * np.exp(-0.5 * ((uu - 99.5) ** 2 + (vv - 100.0) ** 2) / 45.0**2)
+    heat = heat + 0.02 * rng.standard_normal(HEATMAP_SHAPE)
+    return np.clip(heat, 0.0, 1.0).astype(np.float32)
+
+
+def pick_threshold(heatmap: np.ndarray, m: int, min_weight: float) -> float:
+    """An activation threshold that about 10 % more than ``m`` pixels pass (so the buffer fills up)."""
+    ranked = np.sort(heatmap.ravel())[::-1]
+    idx = min(ranked.size - 1, int(1.1 * m))
+    return float(max(ranked[idx], min_weight))
+
+
+def ckdtree_weights(
+    particles: np.ndarray, xy: np.ndarray, weight: np.ndarray, valid: np.ndarray, k: int
+) -> tuple[np.ndarray, float]:
+    """Eq. (1) with a k-d tree. Returns the weights and the seconds spent in build + query."""
+    t0 = time.perf_counter()
+    pts = xy[valid]
+    if pts.shape[0] == 0:
+        return np.ones(particles.shape[0]), time.perf_counter() - t0
+    tree = cKDTree(pts)
+    dist, idx = tree.query(particles, k=k, workers=-1)
+    t_tree = time.perf_counter() - t0
+    dist = dist.reshape(particles.shape[0], k)
+    idx = idx.reshape(particles.shape[0], k)
+    w = np.append(weight[valid], 0.0)  # fewer than k points: idx == n, dist == inf
+    found = np.isfinite(dist)
+    contrib = np.where(found, w[idx] / np.maximum(np.where(found, dist, 1.0), MIN_DISTANCE), 0.0)
+    return contrib.sum(axis=1), t_tree
+
+
+def time_calls(call: Callable[[int], object], repeats: int) -> np.ndarray:
+    """Seconds per call of ``call(i)`` for i in range(repeats), after WARMUP untimed calls."""
+    for i in range(WARMUP):
+        call(i)
+    times = np.empty(repeats)
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        call(WARMUP + i)
+        times[i] = time.perf_counter() - t0
+    return times
+
+
+def first_call(fn: Callable[[], object]) -> float:
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn())
+    return time.perf_counter() - t0
+
+
+def stats_ms(times: np.ndarray) -> tuple[float, float]:
+    q1, med, q3 = np.percentile(times, [25, 50, 75])
+    return 1e3 * med, 1e3 * (q3 - q1)
+
+
+def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) -> dict:
+    config = hp.FilterConfig(num_particles=num_particles, max_measurements=max_measurements, k_max=k)
+    defaults = hp.FilterParams()
+    heatmap = make_heatmap()
+    threshold = pick_threshold(heatmap, max_measurements, defaults.min_weight)
+    params_py = hp.FilterParams(k=k, threshold=threshold)
+    params = params_py.as_arrays()
+    hp.validate_config(config)
+    hp.validate_params(params_py, config)
+
+    cam = jnp.asarray(hp.camera_pose(**CAMERA), jnp.float32)
+    intr = jnp.asarray(INTRINSICS, jnp.float32)
+
+    def inputs(has_heatmap: bool) -> hp.StepInputs:
+        return hp.StepInputs(
+            heatmap=jnp.asarray(heatmap),
+            has_heatmap=jnp.asarray(has_heatmap),
+            cam_to_base=cam,
+            odometry=jnp.zeros((3,), jnp.float32),
+            intrinsics=intr,
+            plane_height=jnp.asarray(PLANE_HEIGHT, jnp.float32),
+        )
+
+    with_map, without_map = inputs(True), inputs(False)
+    step = jax.jit(hp.step, static_argnames="config")
+    key_init, key_first, key_steps = jax.random.split(jax.random.key(0), 3)
+    state0 = hp.init(key_init, config, params)
+
+    # Compile (timed once) and one step with a heat map: its state holds a full buffer for both timings.
+    t_compile_step = first_call(lambda: step(key_first, state0, with_map, params, config))
+    state, info0 = step(key_first, state0, with_map, params, config)
+    jax.block_until_ready(state)
+    n_keys = WARMUP + repeats
+    keys = list(jax.random.split(key_steps, 2 * n_keys))
+    keys_map, keys_age = keys[:n_keys], keys[n_keys:]
+    _, info_map = step(keys_map[0], state, with_map, params, config)
+    _, info_age = step(keys_age[0], state, without_map, params, config)
+
+    t_step_map = time_calls(lambda i: jax.block_until_ready(step(keys_map[i], state, with_map, params, config)),
+                            repeats)
+    t_step_age = time_calls(lambda i: jax.block_until_ready(step(keys_age[i], state, without_map, params, config)),
+                            repeats)
+
+    # The observation model on the step's inputs: the state's particles and this heat map's buffer.
+    project = jax.jit(hp.project_heatmap, static_argnames="max_measurements")
+    buffer = project(heatmap, intr, cam, threshold=params.threshold, plane_height=PLANE_HEIGHT,
+                     max_measurements=max_measurements, max_distance=params.max_distance)
+    buffer = hp.update_buffer(hp.empty_measurements(max_measurements), buffer, True, params.aging, params.min_weight)
+    particles = state.particles
+    jax.block_until_ready((buffer, particles))
+    weights_fn = jax.jit(lambda p, m: hp.particle_weights(p, m, k))
+    t_compile_pw = first_call(lambda: weights_fn(particles, buffer))
+    t_pw = time_calls(lambda i: weights_fn(particles, buffer).block_until_ready(), repeats)
+    ours = np.asarray(weights_fn(particles, buffer), np.float64)
+
+    # NumPy + cKDTree on the same (float32) inputs, in float64.
+    p_np = np.asarray(particles, np.float64)
+    xy_np = np.asarray(buffer.xy, np.float64)
+    w_np = np.asarray(buffer.weight, np.float64)
+    v_np = np.asarray(buffer.valid)
+    tree_times = []
+
+    def ckd(_i: int) -> None:
+        _, t_tree = ckdtree_weights(p_np, xy_np, w_np, v_np, k)
+        tree_times.append(t_tree)
+
+    t_ckd = time_calls(ckd, repeats)
+    t_tree = np.asarray(tree_times[WARMUP:])
+    ref, _ = ckdtree_weights(p_np, xy_np, w_np, v_np, k)
+    rel = np.abs(ours - ref) / np.maximum(np.abs(ref), np.finfo(np.float64).tiny)
+
+    return {
+        "P": num_particles,
+        "M": max_measurements,
+        "threshold": threshold,
+        "valid_buffer": int(np.sum(v_np)),
+        "valid_step_map": int(info_map.num_valid),
+        "valid_step_age": int(info_age.num_valid),
+        "valid_first": int(info0.num_valid),
+        "rows": [
+            ("particle_weights (jax jit)", t_pw, t_compile_pw, int(np.sum(v_np))),
+            ("cKDTree build+query", t_tree, None, int(np.sum(v_np))),
+            ("cKDTree total (numpy+scipy)", t_ckd, None, int(np.sum(v_np))),
+            ("step, heat map (jax jit)", t_step_map, t_compile_step, int(info_map.num_valid)),
+            ("step, no heat map (aging)", t_step_age, None, int(info_age.num_valid)),
+        ],
+        "max_rel": float(rel.max()),
+        "ok": bool(np.all(rel <= RTOL)),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=positive_int, default=100, help="timed calls per row (default 100)")
+    parser.add_argument("--sizes", type=parse_sizes, default=parse_sizes("500x1024,1000x4096"),
+                        help="comma-separated PARTICLESxMEASUREMENTS (default 500x1024,1000x4096)")
+    parser.add_argument("--k", type=positive_int, default=10, help="neighbours per particle (default 10)")
+    args = parser.parse_args(argv)
+
+    dev = jax.devices()[0]
+    print("heatpf_jax benchmark: observation model (eq. 1) and one filter step")
+    print(f"python {platform.python_version()}  jax {jax.__version__}  numpy {np.__version__}  "
+          f"scipy {scipy.__version__}  heatpf_jax {hp.__version__}")
+    print(f"device: {dev.platform} / {dev.device_kind} ({len(jax.devices())} device(s))  os.cpu_count(): "
+          f"{os.cpu_count()}  machine: {platform.machine()}")
+    print(f"k = {args.k}, repeats = {args.repeats} (+{WARMUP} warm-up), "
+          f"heat map {HEATMAP_SHAPE[1]}x{HEATMAP_SHAPE[0]}, min_distance = {MIN_DISTANCE}")
+    print("times in ms: median, IQR (q3 - q1); compile = first call, s")
+    print()
+
+    results = [bench_size(p, m, args.k, args.repeats) for p, m in args.sizes]
+
+    header = f"{'P':>5} {'M':>5}  {'what':<28} {'median ms':>10} {'IQR ms':>9} {'compile s':>9} {'n_valid':>7}"
+    print(header)
+    print("-" * len(header))
+    for res in results:
+        for name, times, compile_s, n_valid in res["rows"]:
+            med, iqr = stats_ms(times)
+            comp = f"{compile_s:9.2f}" if compile_s is not None else f"{'-':>9}"
+            print(f"{res['P']:>5} {res['M']:>5}  {name:<28} {med:10.3f} {iqr:9.3f} {comp} {n_valid:>7}")
+    print()
+
+    header = (f"{'P':>5} {'M':>5}  {'threshold':>9} {'pw / cKDTree':>12} {'step / cKDTree':>14} "
+              f"{'aging / cKDTree':>15} {'max rel diff':>12} {'agree':>5}")
+    print(header)
+    print("-" * len(header))
+    for res in results:
+        med = {name: stats_ms(times)[0] for name, times, _, _ in res["rows"]}
+        ckd = med["cKDTree total (numpy+scipy)"]
+        print(f"{res['P']:>5} {res['M']:>5}  {res['threshold']:9.4f} "
+              f"{med['particle_weights (jax jit)'] / ckd:12.2f} {med['step, heat map (jax jit)'] / ckd:14.2f} "
+              f"{med['step, no heat map (aging)'] / ckd:15.2f} {res['max_rel']:12.2e} "
+              f"{'yes' if res['ok'] else 'NO':>5}")
+    print()
+    print("ratios: median ours / median cKDTree total (build + query + sum); < 1 means ours is faster.")
+    print(f"agree: every particle's weight within relative {RTOL:g} of the cKDTree weight.")
+    return 0 if all(res["ok"] for res in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,218 @@
+"""Measurements from a heat map, and the fixed-size buffer that ages them.
+
+Section III-A: every heat-map pixel with activation ``>= threshold`` is projected
+onto the plane ``z = ball radius`` and becomes a measurement ``m = (r, w)`` with
+``w`` the activation. Section III-C, eq. (2): when a filter step brings no new
+measurements, the buffered ones age: ``w <- w - v``; measurements with
+``w < l`` are removed. Section III-D: odometry moves buffered measurements too.
+
+Buffers have a fixed size with a ``valid`` mask so that every function here is
+jittable and vmappable; invalid slots hold ``xy = 0, weight = 0``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from heatpf_jax.camera import project_pixel
+from heatpf_jax.motion import apply_odometry
+
+__all__ = [
+    "Measurements",
+    "age_measurements",
+    "downscale_heatmap",
+    "empty_measurements",
+    "move_measurements",
+    "project_heatmap",
+    "update_buffer",
+]
+
+
+class Measurements(NamedTuple):
+    """A fixed-size, padded set of ground-plane measurements.
+
+    Attributes:
+        xy: ``float32 [M, 2]`` positions in the base frame, metres.
+        weight: ``float32 [M]`` weights (heat-map activations, aged).
+        valid: ``bool [M]`` which slots hold a measurement.
+    """
+
+    xy: Float[Array, "m 2"]
+    weight: Float[Array, " m"]
+    valid: Bool[Array, " m"]
+
+
+def empty_measurements(size: int) -> Measurements:
+    """A buffer of ``size`` invalid slots."""
+    return Measurements(
+        xy=jnp.zeros((size, 2), jnp.float32),
+        weight=jnp.zeros((size,), jnp.float32),
+        valid=jnp.zeros((size,), bool),
+    )
+
+
+def downscale_heatmap(
+    heatmap: Float[ArrayLike, "h w"], intrinsics: Float[ArrayLike, "4"], factor: int
+) -> tuple[Float[Array, "h2 w2"], Float[Array, "4"]]:
+    """Averages ``factor x factor`` blocks (the paper's second way to cut |M|).
+
+    Rows and columns that do not fill a whole block are dropped. The intrinsics
+    are rescaled so that the new pixel ``(u', v')`` has its centre at the centre
+    of its block: ``u = factor * u' + (factor - 1) / 2``.
+
+    Args:
+        heatmap: ``[H, W]`` activations.
+        intrinsics: ``(fx, fy, cx, cy)`` of ``heatmap``.
+        factor: static positive integer.
+
+    Returns:
+        ``(heatmap [H // factor, W // factor], intrinsics [4])``.
+    """
+    factor = int(factor)
+    if factor < 1:
+        raise ValueError(f"downscale: must be a positive integer, got {factor}")
+    heatmap = jnp.asarray(heatmap)
+    intrinsics = jnp.asarray(intrinsics)
+    if factor == 1:
+        return heatmap, intrinsics
+    h, w = heatmap.shape
+    h2, w2 = h // factor, w // factor
+    if h2 == 0 or w2 == 0:
+        raise ValueError(f"downscale: factor {factor} exceeds heat map shape {heatmap.shape}")
+    blocks = heatmap[: h2 * factor, : w2 * factor].reshape(h2, factor, w2, factor)
+    small = blocks.mean(axis=(1, 3))
+    offset = (factor - 1) / 2.0
+    fx, fy, cx, cy = intrinsics[0], intrinsics[1], intrinsics[2], intrinsics[3]
+    new = jnp.stack([fx / factor, fy / factor, (cx - offset) / factor, (cy - offset) / factor])
+    return small, new
+
+
+def project_heatmap(
+    heatmap: Float[ArrayLike, "h w"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    *,
+    threshold: Float[ArrayLike, ""],
+    plane_height: Float[ArrayLike, ""],
+    max_measurements: int,
+    max_distance: Float[ArrayLike, ""] = jnp.inf,
+    downscale: int = 1,
+) -> Measurements:
+    """Projects every heat-map pixel at or above ``threshold`` onto the ground (III-A).
+
+    Each pixel centre defines a ray from the camera; its intersection with the
+    plane ``z = plane_height`` is the measurement's position and the pixel's
+    activation its weight. Rays that miss the plane, meet it behind the camera
+    or farther than ``max_distance`` from the base origin are invalid. When more
+    than ``max_measurements`` pixels pass, the highest activations are kept.
+    Kept measurements are in raster order (row-major), valid ones first
+    whenever all passing pixels fit.
+
+    Args:
+        heatmap: ``[H, W]`` activations in ``[0, 1]``.
+        intrinsics: ``(fx, fy, cx, cy)`` in heat-map pixels.
+        cam_to_base: ``[4, 4]`` camera pose in the base frame.
+        threshold: minimum activation (may be traced).
+        plane_height: height of the projection plane (the ball radius), metres.
+        max_measurements: static size of the returned buffer.
+        max_distance: maximum horizontal distance from the base origin, metres.
+        downscale: static integer block-averaging factor applied first.
+
+    Returns:
+        :class:`Measurements` of size ``max_measurements``.
+    """
+    heatmap, intrinsics = downscale_heatmap(heatmap, intrinsics, downscale)
+    h, w = heatmap.shape
+    n_pix = h * w
+    rows, cols = jnp.meshgrid(
+        jnp.arange(h, dtype=jnp.float32), jnp.arange(w, dtype=jnp.float32), indexing="ij"
+    )
+    uv = jnp.stack([cols.ravel(), rows.ravel()], axis=-1)
+    xy, ray_ok = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))(
+        uv, intrinsics, cam_to_base, plane_height, max_distance
+    )
+    act = heatmap.ravel().astype(jnp.float32)
+    passes = ray_ok & (act >= threshold)
+
+    m = int(max_measurements)
+
+    def compact(_):
+        # Stable compaction in raster order: passing pixel number j goes to slot j.
+        slot = jnp.where(passes, jnp.cumsum(passes) - 1, m)
+        idx = jnp.full((m + 1,), n_pix, jnp.int32).at[slot].set(jnp.arange(n_pix, dtype=jnp.int32))
+        return idx[:m]
+
+    def strongest(_):
+        score = jnp.where(passes, act, -1.0)
+        _, idx = lax.top_k(score, m)
+        return jnp.sort(idx).astype(jnp.int32)
+
+    if m >= n_pix:  # every pixel fits
+        idx = compact(None)
+    else:
+        idx = lax.cond(jnp.sum(passes) <= m, compact, strongest, None)
+    inside = idx < n_pix
+    safe = jnp.where(inside, idx, 0)
+    valid = inside & passes[safe]
+    return Measurements(
+        xy=jnp.where(valid[:, None], xy[safe], 0.0),
+        weight=jnp.where(valid, act[safe], 0.0),
+        valid=valid,
+    )
+
+
+def age_measurements(
+    measurements: Measurements, aging: Float[ArrayLike, ""], min_weight: Float[ArrayLike, ""]
+) -> Measurements:
+    """Eq. (2): subtracts ``aging`` (v) from every weight, drops weights below ``min_weight`` (l)."""
+    weight = measurements.weight - aging
+    valid = measurements.valid & (weight >= min_weight)
+    return Measurements(
+        xy=measurements.xy, weight=jnp.where(valid, weight, 0.0), valid=valid
+    )
+
+
+def move_measurements(measurements: Measurements, odometry: Float[ArrayLike, "3"]) -> Measurements:
+    """Moves buffered measurements into the base frame after ``odometry`` (III-C, III-D).
+
+    Measurements are data, not hypotheses: they move with the odometry as given,
+    without the particles' motion noise.
+    """
+    xy = apply_odometry(measurements.xy, odometry)
+    return measurements._replace(xy=jnp.where(measurements.valid[:, None], xy, 0.0))
+
+
+def update_buffer(
+    buffer: Measurements,
+    new: Measurements,
+    has_new: Bool[ArrayLike, ""],
+    aging: Float[ArrayLike, ""],
+    min_weight: Float[ArrayLike, ""],
+) -> Measurements:
+    """Eq. (2): a non-empty new measurement set replaces the buffer, otherwise it ages.
+
+    Following eq. (2), a heat map that yields no valid measurement (nothing above
+    the threshold) counts as no new input, so the old measurements age instead
+    of being wiped. New measurements below ``min_weight`` (l) are dropped, as
+    the paper removes every measurement with ``w < l``.
+
+    Args:
+        buffer: the current buffer (already moved by this step's odometry).
+        new: this step's projected heat map (ignored unless ``has_new``).
+        has_new: whether this step brought a heat map.
+        aging: v, subtracted per filter step.
+        min_weight: l.
+
+    Returns:
+        The buffer for this step.
+    """
+    new_valid = new.valid & (new.weight >= min_weight)
+    new = Measurements(new.xy, jnp.where(new_valid, new.weight, 0.0), new_valid)
+    use_new = jnp.asarray(has_new) & jnp.any(new_valid)
+    aged = age_measurements(buffer, aging, min_weight)
+    return jax.tree.map(lambda a, b: jnp.where(use_new, a, b), new, aged)

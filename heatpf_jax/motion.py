@@ -1,0 +1,74 @@
+"""Movement model (III-D): odometry with motion-scaled noise, and Gaussian diffusion.
+
+Odometry ``(dx, dy, dtheta)`` is the robot's motion from step t-1 to t in the base
+frame of t-1. A world-fixed point with base coordinates ``p`` at t-1 has
+coordinates ``R(dtheta)^T (p - (dx, dy))`` at t. Noise is reparameterised
+(``std * standard normal``) so gradients with respect to the noise parameters exist.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
+
+__all__ = ["apply_odometry", "diffuse", "move_particles"]
+
+
+def apply_odometry(points: Float[ArrayLike, "n 2"], odometry: Float[ArrayLike, "... 3"]) -> Float[Array, "n 2"]:
+    """Expresses base-frame points of step t-1 in the base frame of step t.
+
+    Args:
+        points: ``[n, 2]`` points.
+        odometry: ``[3]`` shared motion, or ``[n, 3]`` one motion per point.
+
+    Returns:
+        ``[n, 2]`` points ``R(dtheta)^T (p - (dx, dy))``.
+    """
+    points = jnp.asarray(points)
+    odometry = jnp.asarray(odometry)
+    dx, dy, dth = odometry[..., 0], odometry[..., 1], odometry[..., 2]
+    c, s = jnp.cos(dth), jnp.sin(dth)
+    if odometry.ndim == 1:
+        dx, dy, c, s = (jnp.broadcast_to(a, points.shape[:1]) for a in (dx, dy, c, s))
+    qx = points[:, 0] - dx
+    qy = points[:, 1] - dy
+    return jnp.stack([c * qx + s * qy, -s * qx + c * qy], axis=-1)
+
+
+def move_particles(
+    key: PRNGKeyArray,
+    particles: Float[ArrayLike, "n 2"],
+    odometry: Float[ArrayLike, "3"],
+    trans_noise: Float[ArrayLike, ""],
+    rot_noise: Float[ArrayLike, ""],
+) -> Float[Array, "n 2"]:
+    """Applies odometry to particles, each with its own noisy copy of the motion.
+
+    Each particle sees ``dx + trans_noise * |d| * n1``, ``dy + trans_noise * |d| * n2``
+    and ``dtheta + rot_noise * |dtheta| * n3`` with ``|d| = hypot(dx, dy)`` and
+    ``n ~ N(0, 1)``: the noise scales with the motion, so a standing robot adds none.
+
+    Args:
+        key: PRNG key.
+        particles: ``[n, 2]``.
+        odometry: ``[3]`` ``(dx, dy, dtheta)``.
+        trans_noise: translational noise, a fraction of the distance travelled.
+        rot_noise: rotational noise, a fraction of the angle turned.
+
+    Returns:
+        ``[n, 2]`` moved particles.
+    """
+    particles = jnp.asarray(particles)
+    odometry = jnp.asarray(odometry, particles.dtype)
+    sq = odometry[0] ** 2 + odometry[1] ** 2
+    dist = jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
+    scale = jnp.stack([trans_noise * dist, trans_noise * dist, rot_noise * jnp.abs(odometry[2])])
+    noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
+    return apply_odometry(particles, odometry[None, :] + noise * scale[None, :])
+
+
+def diffuse(key: PRNGKeyArray, particles: Float[ArrayLike, "n 2"], std: Float[ArrayLike, ""]) -> Float[Array, "n 2"]:
+    """Adds isotropic Gaussian noise ``std * N(0, I)`` to every particle (III-D)."""
+    particles = jnp.asarray(particles)
+    return particles + std * jax.random.normal(key, particles.shape, particles.dtype)
