@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 __all__ = [
@@ -31,10 +32,19 @@ def effective_sample_size(weights: Float[ArrayLike, " n"]) -> Float[Array, ""]:
 
 
 def _search(weights: Float[Array, " n"], positions: Float[Array, " m"]) -> Int[Array, " m"]:
+    n = weights.shape[0]
     cdf = jnp.cumsum(weights)
     cdf = cdf / cdf[-1]
-    idx = jnp.searchsorted(cdf, positions, side="right")
-    return jnp.clip(idx, 0, weights.shape[0] - 1).astype(jnp.int32)
+    idx = jnp.clip(jnp.searchsorted(cdf, positions, side="right"), 0, n - 1)
+    # float32 rounding (a position that rounds to 1, or XLA's blocked cumsum not being exactly
+    # monotone) can land on a zero-weight particle: move to the next positive-weight index,
+    # or back to the last one. Integer work, so exact.
+    slots = jnp.arange(n, dtype=jnp.int32)
+    positive = weights > 0
+    next_positive = lax.cummin(jnp.where(positive, slots, n), axis=0, reverse=True)
+    last_positive = jnp.max(jnp.where(positive, slots, -1))
+    moved = next_positive[idx]
+    return jnp.where(moved < n, moved, last_positive).astype(jnp.int32)
 
 
 def systematic(key: PRNGKeyArray, weights: Float[ArrayLike, " n"], num_samples: int) -> Int[Array, " m"]:

@@ -1,0 +1,89 @@
+"""Explorer selection and spawn distributions.
+
+References: NumPy stable argsort for the lowest-support particles; the moments
+and CDFs of the uniform and normal distributions (scipy.stats KS tests).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import stats
+
+import heatpf_jax as hp
+
+
+def _reference_mask(support: np.ndarray, fraction: float) -> np.ndarray:
+    n = support.shape[0]
+    count = int(np.round(fraction * n))
+    mask = np.zeros(n, bool)
+    mask[np.argsort(support, kind="stable")[:count]] = True
+    return mask
+
+
+# fraction * n is never within 0.05 of a .5 tie, so float32 and float64 rounding agree.
+@pytest.mark.parametrize("n", [128, 97])
+@pytest.mark.parametrize("fraction", [0.0, 0.05, 0.1, 0.37, 0.9, 1.0])
+def test_explorer_mask_marks_lowest_support(n, fraction, rng):
+    support = rng.gamma(0.5, size=n).astype(np.float32)
+    mask = np.asarray(hp.explorer_mask(jnp.asarray(support), fraction))
+    assert mask.dtype == bool and mask.shape == (n,)
+    assert mask.sum() == round(fraction * n)
+    np.testing.assert_array_equal(mask, _reference_mask(support, fraction))
+    if 0 < mask.sum() < n:
+        assert support[mask].max() <= support[~mask].min()
+
+
+def test_explorer_mask_ties_by_index_and_traced_fraction(rng):
+    support = np.repeat(np.float32([0.5, 0.1, 0.5, 0.1]), 16)  # many ties
+    for fraction in (0.2, 0.5, 0.7):
+        got = np.asarray(jax.jit(hp.explorer_mask)(jnp.asarray(support), jnp.float32(fraction)))
+        np.testing.assert_array_equal(got, _reference_mask(support, fraction))
+        np.testing.assert_array_equal(got, np.asarray(hp.explorer_mask(jnp.asarray(support), fraction)))
+    # Traced fraction under vmap equals the NumPy reference for each fraction.
+    fractions = jnp.array([0.0, 0.05, 0.5], jnp.float32)
+    support = rng.random(128).astype(np.float32)
+    batch = np.asarray(jax.vmap(hp.explorer_mask, in_axes=(None, 0))(jnp.asarray(support), fractions))
+    for i, fraction in enumerate((0.0, 0.05, 0.5)):
+        np.testing.assert_array_equal(batch[i], _reference_mask(support, fraction))
+
+
+def test_spawn_uniform_inside_box_with_uniform_moments():
+    box = (-1.0, 3.0, 2.0, 2.5)
+    n = 20000
+    pts = np.asarray(hp.spawn_uniform(jax.random.key(0), n, box), np.float64)
+    assert pts.shape == (n, 2)
+    assert np.all(pts[:, 0] >= box[0]) and np.all(pts[:, 0] < box[1])
+    assert np.all(pts[:, 1] >= box[2]) and np.all(pts[:, 1] < box[3])
+    for axis, (lo, hi) in enumerate([(box[0], box[1]), (box[2], box[3])]):
+        width = hi - lo
+        # Mean (lo + hi) / 2 with standard error width / sqrt(12 n).
+        assert abs(pts[:, axis].mean() - (lo + hi) / 2) < 5 * width / np.sqrt(12 * n)
+        # Variance width^2 / 12; the sample variance of a uniform has relative SE sqrt(0.8 / n).
+        np.testing.assert_allclose(pts[:, axis].var(), width**2 / 12, rtol=5 * np.sqrt(0.8 / n))
+        assert stats.kstest(pts[:, axis], stats.uniform(lo, width).cdf).pvalue > 1e-4
+    assert abs(np.corrcoef(pts.T)[0, 1]) < 5 / np.sqrt(n)
+    # Keys matter.
+    other = np.asarray(hp.spawn_uniform(jax.random.key(1), n, box))
+    assert not np.allclose(other, pts)
+
+
+def test_spawn_gaussian_moments():
+    n = 20000
+    mean = np.array([1.5, -0.5])
+    std = 0.3
+    pts = np.asarray(hp.spawn_gaussian(jax.random.key(2), n, jnp.asarray(mean, jnp.float32), std), np.float64)
+    assert pts.shape == (n, 2)
+    np.testing.assert_array_less(np.abs(pts.mean(0) - mean), 5 * std / np.sqrt(n))
+    # Sample variance of a normal: relative SE sqrt(2 / n).
+    np.testing.assert_allclose(pts.var(0), std**2, rtol=5 * np.sqrt(2 / n))
+    assert abs(np.corrcoef(pts.T)[0, 1]) < 5 / np.sqrt(n)
+    for axis in range(2):
+        assert stats.kstest(pts[:, axis], stats.norm(mean[axis], std).cdf).pvalue > 1e-4
+    # A traced std and mean under jit give the same draw as concrete ones.
+    jitted = jax.jit(hp.spawn_gaussian, static_argnums=1)
+    np.testing.assert_allclose(
+        jitted(jax.random.key(2), n, jnp.asarray(mean, jnp.float32), jnp.float32(std)), pts, rtol=1e-6, atol=1e-6
+    )
