@@ -151,6 +151,7 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
             odometry=jnp.zeros((3,), jnp.float32),
             intrinsics=intr,
             plane_height=jnp.asarray(PLANE_HEIGHT, jnp.float32),
+            dt=jnp.asarray(0.1, jnp.float32),
         )
 
     with_map, without_map = inputs(True), inputs(False)

@@ -14,7 +14,7 @@ import numpy as np
 __all__ = ["apply_overrides", "error_stats", "main", "write_estimates_csv"]
 
 CSV_HEADER = "t,x,y,cov_xx,cov_xy,cov_yy"
-METHODS = ("heatmap",)
+METHODS = ("heatmap", "conventional", "kalman")
 
 
 def apply_overrides(params, config, assignments: list[str]):
@@ -103,6 +103,7 @@ def _run_filter(seq, args, params, config):
 
     from heatpf_jax.filter import run
 
+    config = config._replace(method=args.method)
     start = time.perf_counter()
     result = run(jax.random.key(args.seed), seq, params, config)
     mean = np.asarray(result.info.mean)
@@ -115,8 +116,10 @@ def _run_filter(seq, args, params, config):
 
 
 def _report(name: str, seq, mean, cov, elapsed: float) -> None:
-    print(f"{name}: {seq.num_steps} steps, {int(np.sum(seq.has_heatmap))} heat maps, "
-          f"{elapsed:.2f} s (including compilation)")
+    print(
+        f"{name}: {seq.num_steps} steps, {int(np.sum(seq.has_heatmap))} heat maps, "
+        f"{elapsed:.2f} s (including compilation)"
+    )
     if seq.ground_truth is not None:
         stats = error_stats(mean, seq.ground_truth)
         print(f"error [m]: mean {stats['mean']:.4f}  max {stats['max']:.4f}  std {stats['std']:.4f}")
@@ -135,19 +138,97 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_demo(args) -> int:
-    from heatpf_jax.sim import simulate_standard
+    from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table
+    from heatpf_jax.sim import simulate
 
     params, config = _settings(args)
     if args.steps < 1:
         raise ValueError(f"--steps: must be >= 1, got {args.steps}")
-    seq = simulate_standard(args.seed, num_steps=args.steps)
-    print("heatpf demo: simulated 'standard' scenario (static robot, 200x150 heat map every step, 10 Hz)")
-    mean, cov, elapsed = _run_filter(seq, args, params, config)
-    _report("heat-map filter", seq, mean, cov, elapsed)
+    print("heatpf demo: simulated 'standard' scenario (static robot, 200x150 heat map every step, 10 Hz);")
+    print("the short version of `heatpf eval` (one scenario, one sequence)")
+    start = time.perf_counter()
+    seq = simulate("standard", args.seed, num_steps=args.steps)
+    variants = DEFAULT_VARIANTS[:3]
+    result = evaluate_sequences(
+        "standard",
+        [seq],
+        params=params,
+        config=config,
+        variants=variants,
+        seed=args.seed,
+        burn_in=min(10, args.steps - 1),
+    )
+    print(format_table(result))
+    print(f"({time.perf_counter() - start:.1f} s including compilation)")
     if args.output:
-        write_estimates_csv(args.output, mean, cov)
-        print(f"wrote {args.output}")
+        write_estimates_csv(args.output, result.methods[0].estimates[0], np.zeros((args.steps, 2, 2)))
+        print(f"wrote {args.output} (heatmap estimates; covariances are in `heatpf run`)")
     return 0
+
+
+def _cmd_eval(args) -> int:
+    from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table, plot_scenario
+    from heatpf_jax.sequence import load_sequence
+    from heatpf_jax.sim import SCENARIOS, simulate
+
+    params, config = _settings(args)
+    if args.input:
+        jobs = [(Path(args.input).stem, None)]
+    else:
+        names = args.scenario or list(SCENARIOS)
+        unknown = [n for n in names if n not in SCENARIOS]
+        if unknown:
+            raise ValueError(f"--scenario: unknown {unknown[0]!r} (known: {', '.join(SCENARIOS)})")
+        jobs = [(n, n) for n in names]
+    if args.seeds < 1:
+        raise ValueError(f"--seeds: must be >= 1, got {args.seeds}")
+    if args.steps is not None and args.steps < 1:
+        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    if args.plot:
+        import importlib.util
+
+        if importlib.util.find_spec("matplotlib") is None:
+            raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"')
+
+    seqs_per_job = 1 if args.input else args.seeds
+    total = len(jobs) * (seqs_per_job + len(DEFAULT_VARIANTS))
+    bar = _progress(total)
+    tables, written = [], []
+    try:
+        for name, scenario in jobs:
+            if scenario is None:
+                sequences = [load_sequence(args.input)]
+                bar.update(1)
+            else:
+                sequences = []
+                for seed in range(args.seeds):
+                    bar.set_description(f"{name} seed {seed}")
+                    sequences.append(simulate(scenario, seed, num_steps=args.steps))
+                    bar.update(1)
+
+            def tick(label: str) -> None:
+                bar.set_description(label)
+                bar.update(1)
+
+            result = evaluate_sequences(
+                name, sequences, params=params, config=config, seed=args.seed, burn_in=args.burn_in, progress=tick
+            )
+            tables.append(format_table(result))
+            bar.write(tables[-1] + "\n")
+            if args.plot:
+                written += plot_scenario(result, args.plot)
+    finally:
+        bar.close()
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def _progress(total: int):
+    from tqdm import tqdm
+
+    # disable=None: a live bar on a terminal, silence in logs and CI.
+    return tqdm(total=total, file=sys.stderr, dynamic_ncols=True, leave=False, mininterval=0.5, disable=None)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -156,8 +237,12 @@ def _build_parser() -> argparse.ArgumentParser:
 
     def common(p):
         p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
-        p.add_argument("--set", action="append", metavar="NAME=VALUE",
-                       help="override a FilterParams or FilterConfig field (repeatable), e.g. --set k=3")
+        p.add_argument(
+            "--set",
+            action="append",
+            metavar="NAME=VALUE",
+            help="override a FilterParams or FilterConfig field (repeatable), e.g. --set k=3",
+        )
         p.add_argument("--method", choices=METHODS, default="heatmap", help="filter method (default heatmap)")
 
     p_run = sub.add_parser("run", help="run the filter on a version-1 sequence file")
@@ -166,7 +251,18 @@ def _build_parser() -> argparse.ArgumentParser:
     common(p_run)
     p_run.set_defaults(func=_cmd_run)
 
-    p_demo = sub.add_parser("demo", help="run the filter on a built-in simulated sequence")
+    p_eval = sub.add_parser("eval", help="the paper's comparison (Table I, Fig. 4, Fig. 6) on every scenario")
+    p_eval.add_argument("--scenario", action="append", help="a scenario (repeatable; default: all)")
+    p_eval.add_argument("--input", help="evaluate a recording (.npz with ground_truth) instead of the scenarios")
+    p_eval.add_argument("--seeds", type=int, default=5, help="sequences per scenario (default 5)")
+    p_eval.add_argument("--steps", type=int, default=None, help="steps per sequence (default: the scenario's, 300)")
+    p_eval.add_argument("--burn-in", type=int, default=10, help="first steps left out of the statistics (default 10)")
+    p_eval.add_argument("--plot", metavar="DIR", help="write Fig. 4 and Fig. 6 per scenario as PNG into DIR")
+    p_eval.add_argument("--seed", type=int, default=0, help="PRNG seed of the filters (default 0)")
+    p_eval.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter (repeatable)")
+    p_eval.set_defaults(func=_cmd_eval)
+
+    p_demo = sub.add_parser("demo", help="a short evaluation on a built-in simulated sequence")
     p_demo.add_argument("--steps", type=int, default=300, help="number of filter steps (default 300)")
     p_demo.add_argument("--output", "-o", help="optional CSV of the estimates")
     common(p_demo)

@@ -31,8 +31,10 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
+from heatpf_jax.clusters import cluster_measurement
 from heatpf_jax.estimate import Estimate, top_fraction_estimate
 from heatpf_jax.explorers import explorer_mask, spawn_gaussian, spawn_uniform
+from heatpf_jax.kalman import KalmanState, kalman_init, kalman_odometry, kalman_predict, kalman_update
 from heatpf_jax.measurements import (
     Measurements,
     empty_measurements,
@@ -53,6 +55,9 @@ __all__ = [
     "StepInfo",
     "StepInputs",
     "init",
+    "kalman_init_state",
+    "kalman_step",
+    "measure",
     "run",
     "stack_params",
     "step",
@@ -60,6 +65,7 @@ __all__ = [
     "validate_params",
 ]
 
+METHODS = ("heatmap", "conventional", "kalman")
 OBSERVATIONS = ("inverse_distance", "gaussian")
 SPAWNS = ("uniform", "gaussian")
 
@@ -80,6 +86,11 @@ class FilterConfig(NamedTuple):
         downscale: integer block-averaging of the heat map before projection (III-A).
         observation: ``"inverse_distance"`` (eq. 1, default) or ``"gaussian"``
             (Gaussian kernel with ``FilterParams.obs_std``).
+        method: ``"heatmap"`` (the paper's filter, default); ``"conventional"``: the
+            same particle filter fed one measurement per heat map, the centre of the
+            strongest image-space cluster (IV-B, :mod:`heatpf_jax.clusters`), with a
+            one-slot buffer; ``"kalman"``: a constant-velocity Kalman filter on that
+            same measurement (:mod:`heatpf_jax.kalman`).
     """
 
     num_particles: int = 500
@@ -90,6 +101,12 @@ class FilterConfig(NamedTuple):
     spawn_box: tuple[float, float, float, float] = (0.0, 7.0, -4.0, 4.0)
     downscale: int = 1
     observation: str = "inverse_distance"
+    method: str = "heatmap"
+
+    @property
+    def buffer_size(self) -> int:
+        """Slots in the measurement buffer: one for the single-measurement baselines."""
+        return self.max_measurements if self.method == "heatmap" else 1
 
 
 class FilterParams(NamedTuple):
@@ -111,6 +128,8 @@ class FilterParams(NamedTuple):
         min_distance: distance floor of eq. (1), metres.
         max_distance: projected pixels farther from the robot are dropped, metres.
         obs_std: kernel std of the ``"gaussian"`` observation model, metres.
+        kalman_accel_std: white-noise acceleration of the ``"kalman"`` baseline, m/s^2.
+        kalman_meas_std: measurement noise of the ``"kalman"`` baseline, metres.
     """
 
     k: int = 3
@@ -127,6 +146,8 @@ class FilterParams(NamedTuple):
     min_distance: float = 0.01
     max_distance: float = 12.0
     obs_std: float = 0.2
+    kalman_accel_std: float = 3.0
+    kalman_meas_std: float = 0.1
 
     def as_arrays(self) -> FilterParams:
         """Every field as a JAX array (``int32`` for ``k``, ``float32`` otherwise), as ``step`` expects."""
@@ -175,6 +196,7 @@ class StepInputs(NamedTuple):
         odometry: ``float32 [3]`` motion since the previous step, ``(dx, dy, dtheta)``.
         intrinsics: ``float32 [4]`` ``(fx, fy, cx, cy)``.
         plane_height: ``float32 []`` the ball radius.
+        dt: ``float32 []`` the filter period, seconds (used by the Kalman baseline).
     """
 
     heatmap: Float[Array, "h w"]
@@ -183,6 +205,7 @@ class StepInputs(NamedTuple):
     odometry: Float[Array, "3"]
     intrinsics: Float[Array, "4"]
     plane_height: Float[Array, ""]
+    dt: Float[Array, ""]
 
 
 class StepInfo(NamedTuple):
@@ -206,10 +229,11 @@ class StepInfo(NamedTuple):
 
 
 class RunResult(NamedTuple):
-    """What :func:`run` returns: ``info`` stacked over steps (leading axis T) and the final state."""
+    """What :func:`run` returns: ``info`` stacked over steps (leading axis T) and the final state
+    (a :class:`FilterState`, or a :class:`~heatpf_jax.kalman.KalmanState` for ``method="kalman"``)."""
 
     info: StepInfo
-    final_state: FilterState
+    final_state: FilterState | KalmanState
 
 
 def validate_config(config: FilterConfig) -> None:
@@ -224,6 +248,8 @@ def validate_config(config: FilterConfig) -> None:
         raise ValueError(f"resampler: must be one of {sorted(RESAMPLERS)}, got {config.resampler!r}")
     if config.spawn not in SPAWNS:
         raise ValueError(f"spawn: must be one of {list(SPAWNS)}, got {config.spawn!r}")
+    if config.method not in METHODS:
+        raise ValueError(f"method: must be one of {list(METHODS)}, got {config.method!r}")
     if config.observation not in OBSERVATIONS:
         raise ValueError(f"observation: must be one of {list(OBSERVATIONS)}, got {config.observation!r}")
     box = tuple(config.spawn_box)
@@ -246,6 +272,8 @@ _RANGES = {
     "min_distance": (0.0, math.inf, False, False),
     "max_distance": (0.0, math.inf, False, True),
     "obs_std": (0.0, math.inf, False, False),
+    "kalman_accel_std": (0.0, math.inf, True, False),
+    "kalman_meas_std": (0.0, math.inf, False, False),
 }
 
 
@@ -294,7 +322,7 @@ def init(key: PRNGKeyArray, config: FilterConfig, params: FilterParams) -> Filte
     return FilterState(
         particles=particles,
         log_weights=jnp.full((n,), -math.log(n), jnp.float32),
-        buffer=empty_measurements(config.max_measurements),
+        buffer=empty_measurements(config.buffer_size),
         mean=jnp.mean(particles, axis=0),
         t=jnp.zeros((), jnp.int32),
     )
@@ -318,6 +346,30 @@ def _observe(particles, buffer: Measurements, params: FilterParams, config: Filt
     return particle_weights(particles, buffer, params.k, k_max=config.k_max, min_distance=params.min_distance)
 
 
+def measure(inputs: StepInputs, params: FilterParams, config: FilterConfig) -> Measurements:
+    """This step's measurements from its heat map: every pixel (III-A), or one cluster centre (IV-B)."""
+    if config.method == "heatmap":
+        return project_heatmap(
+            inputs.heatmap,
+            inputs.intrinsics,
+            inputs.cam_to_base,
+            threshold=params.threshold,
+            plane_height=inputs.plane_height,
+            max_measurements=config.max_measurements,
+            max_distance=params.max_distance,
+            downscale=config.downscale,
+        )
+    return cluster_measurement(
+        inputs.heatmap,
+        inputs.intrinsics,
+        inputs.cam_to_base,
+        threshold=params.threshold,
+        plane_height=inputs.plane_height,
+        size=config.buffer_size,
+        max_distance=params.max_distance,
+    )
+
+
 def step(
     key: PRNGKeyArray,
     state: FilterState,
@@ -325,7 +377,9 @@ def step(
     params: FilterParams,
     config: FilterConfig,
 ) -> tuple[FilterState, StepInfo]:
-    """One filter step (see the module docstring for the order).
+    """One particle-filter step (see the module docstring for the order).
+
+    For ``config.method == "kalman"`` use :func:`kalman_step`; :func:`run` dispatches.
 
     Args:
         key: PRNG key.
@@ -346,19 +400,12 @@ def step(
     buffer = move_measurements(state.buffer, inputs.odometry)
 
     # 2. New measurements (III-A) or aging (III-C, eq. 2).
-    def project(_):
-        return project_heatmap(
-            inputs.heatmap,
-            inputs.intrinsics,
-            inputs.cam_to_base,
-            threshold=params.threshold,
-            plane_height=inputs.plane_height,
-            max_measurements=config.max_measurements,
-            max_distance=params.max_distance,
-            downscale=config.downscale,
-        )
-
-    new = lax.cond(inputs.has_heatmap, project, lambda _: empty_measurements(config.max_measurements), None)
+    new = lax.cond(
+        inputs.has_heatmap,
+        lambda _: measure(inputs, params, config),
+        lambda _: empty_measurements(config.buffer_size),
+        None,
+    )
     buffer = update_buffer(buffer, new, inputs.has_heatmap, params.aging, params.min_weight)
 
     # 3. Observation model (III-B, eq. 1).
@@ -398,6 +445,39 @@ def step(
     return new_state, info
 
 
+def kalman_init_state(config: FilterConfig) -> KalmanState:
+    """The Kalman baseline's prior: centred on ``spawn_box`` with a std of half its larger side."""
+    x0, x1, y0, y1 = config.spawn_box
+    return kalman_init(jnp.array([(x0 + x1) / 2, (y0 + y1) / 2], jnp.float32), jnp.float32(max(x1 - x0, y1 - y0) / 2))
+
+
+def kalman_step(
+    state: KalmanState, inputs: StepInputs, params: FilterParams, config: FilterConfig
+) -> tuple[KalmanState, StepInfo]:
+    """One step of the Kalman baseline: odometry, prediction, update with the cluster measurement.
+
+    Its :class:`StepInfo` has ``ess = 0`` and ``resampled = False`` (no particles).
+    """
+    state = kalman_odometry(state, inputs.odometry, params.odom_trans_noise, params.odom_rot_noise)
+    state = kalman_predict(state, inputs.dt, params.kalman_accel_std)
+    new = lax.cond(
+        inputs.has_heatmap,
+        lambda _: measure(inputs, params, config),
+        lambda _: empty_measurements(config.buffer_size),
+        None,
+    )
+    state = kalman_update(state, new.xy[0], new.valid[0], params.kalman_meas_std)
+    info = StepInfo(
+        mean=state.mean[:2],
+        cov=state.cov[:2, :2],
+        weighted_mean=state.mean[:2],
+        ess=jnp.zeros((), jnp.float32),
+        num_valid=new.valid[0].astype(jnp.int32),
+        resampled=jnp.zeros((), bool),
+    )
+    return state, info
+
+
 class _ScanInputs(NamedTuple):
     key: PRNGKeyArray
     heatmap: Float[Array, "h w"]
@@ -408,21 +488,32 @@ class _ScanInputs(NamedTuple):
 
 def _run(key: PRNGKeyArray, sequence: Sequence, params: FilterParams, config: FilterConfig) -> RunResult:
     k_init, k_steps = jax.random.split(key)
-    state = init(k_init, config, params)
     num_steps = sequence.heatmaps.shape[0]
     intrinsics = jnp.asarray(sequence.intrinsics, jnp.float32)
     plane_height = jnp.asarray(sequence.ball_radius, jnp.float32)
+    dt = jnp.asarray(sequence.dt, jnp.float32)
 
-    def body(carry: FilterState, x: _ScanInputs):
-        inputs = StepInputs(
+    def inputs_of(x: _ScanInputs) -> StepInputs:
+        return StepInputs(
             heatmap=x.heatmap,
             has_heatmap=x.has_heatmap,
             cam_to_base=x.cam_to_base,
             odometry=x.odometry,
             intrinsics=intrinsics,
             plane_height=plane_height,
+            dt=dt,
         )
-        return step(x.key, carry, inputs, params, config)
+
+    if config.method == "kalman":
+        state = kalman_init_state(config)
+
+        def body(carry, x: _ScanInputs):
+            return kalman_step(carry, inputs_of(x), params, config)
+    else:
+        state = init(k_init, config, params)
+
+        def body(carry, x: _ScanInputs):
+            return step(x.key, carry, inputs_of(x), params, config)
 
     xs = _ScanInputs(
         key=jax.random.split(k_steps, num_steps),

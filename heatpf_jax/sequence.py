@@ -51,6 +51,13 @@ class Sequence(NamedTuple):
     def num_steps(self) -> int:
         return int(np.shape(self.heatmaps)[0])
 
+    def head(self, num_steps: int) -> Sequence:
+        """The first ``num_steps`` steps (per-step arrays cut, constants kept)."""
+        per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth")
+        return self._replace(
+            **{k: getattr(self, k)[:num_steps] for k in per_step if getattr(self, k) is not None}
+        )
+
 
 # key: (dtype kind check, dtype name for messages, shape with None for T/H/W)
 _SPEC = {

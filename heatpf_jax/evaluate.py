@@ -1,0 +1,198 @@
+"""The paper's comparison (Table I, Fig. 4, Fig. 6) on simulated scenarios or a user's recording.
+
+Every method runs through the same :func:`heatpf_jax.run`, with the same
+parameters except where a method differs (``FilterConfig.method``), on the same
+sequences. Seeds of one scenario share shapes, so each method runs all seeds
+in one ``vmap`` and compiles once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from heatpf_jax.filter import FilterConfig, FilterParams, run
+from heatpf_jax.sequence import Sequence
+
+__all__ = [
+    "DEFAULT_VARIANTS",
+    "MethodResult",
+    "ScenarioResult",
+    "Variant",
+    "evaluate_sequences",
+    "format_table",
+    "plot_scenario",
+]
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A named way to run the filter: a method plus parameter changes."""
+
+    name: str
+    method: str
+    overrides: dict = field(default_factory=dict)
+
+
+DEFAULT_VARIANTS = (
+    Variant("heatmap", "heatmap"),
+    Variant("conventional", "conventional"),
+    Variant("kalman", "kalman"),
+    # Aging ablations (III-C): measurements that never age, and measurements that die at once.
+    Variant("heatmap, no aging (v=0, l=0)", "heatmap", {"aging": 0.0, "min_weight": 0.0}),
+    Variant("heatmap, v=1 (no memory)", "heatmap", {"aging": 1.0}),
+)
+
+
+@dataclass
+class MethodResult:
+    """Estimates and errors of one variant on every sequence of a scenario."""
+
+    variant: Variant
+    estimates: np.ndarray  # [S, T, 2]
+    errors: np.ndarray  # [S, T] Euclidean error, metres
+
+    def stats(self, burn_in: int) -> dict[str, float]:
+        e = self.errors[:, burn_in:].ravel()
+        return {"mean": float(e.mean()), "max": float(e.max()), "std": float(e.std())}
+
+
+@dataclass
+class ScenarioResult:
+    name: str
+    truth: np.ndarray  # [S, T, 2]
+    methods: list[MethodResult]
+    burn_in: int
+
+    def by_name(self, name: str) -> MethodResult | None:
+        return next((m for m in self.methods if m.variant.name == name), None)
+
+
+def _stack(sequences: list[Sequence]) -> Sequence:
+    shapes = {s.heatmaps.shape for s in sequences}
+    if len(shapes) != 1:
+        raise ValueError(f"sequences: seeds of one scenario must share shapes, got {sorted(shapes)}")
+    fields = {}
+    for name in Sequence._fields:
+        values = [getattr(s, name) for s in sequences]
+        fields[name] = None if any(v is None for v in values) else np.stack(values)
+    return Sequence(**fields)
+
+
+def evaluate_sequences(
+    name: str,
+    sequences: list[Sequence],
+    *,
+    params: FilterParams,
+    config: FilterConfig,
+    variants: Iterable[Variant] = DEFAULT_VARIANTS,
+    seed: int = 0,
+    burn_in: int = 10,
+    progress: Callable[[str], None] | None = None,
+) -> ScenarioResult:
+    """Runs every variant on every sequence (with ground truth) of one scenario.
+
+    Args:
+        name: scenario name, for the table.
+        sequences: sequences of equal shapes, each with ``ground_truth``.
+        params: the shared parameters; each variant applies its overrides on top.
+        config: the shared static configuration; each variant sets its method.
+        variants: what to run.
+        seed: PRNG seed; sequence i uses key ``fold_in(key(seed), i)`` for every variant.
+        burn_in: steps excluded from the statistics (convergence from the initial prior).
+        progress: called with a label after each variant.
+
+    Returns:
+        :class:`ScenarioResult`.
+    """
+    for i, s in enumerate(sequences):
+        if s.ground_truth is None:
+            raise ValueError(f"ground_truth: sequence {i} of {name!r} has none; the comparison needs it")
+    if burn_in >= sequences[0].num_steps:
+        raise ValueError(f"burn_in: {burn_in} leaves no step of the {sequences[0].num_steps}-step sequences")
+    batch = _stack(sequences)
+    truth = np.asarray(batch.ground_truth, np.float64)
+    batch = batch._replace(ground_truth=None)
+    keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(np.arange(len(sequences)))
+    results = []
+    for variant in variants:
+        p = params._replace(**variant.overrides)
+        c = config._replace(method=variant.method)
+        out = jax.vmap(lambda k, s, p=p, c=c: run(k, s, p, c).info.mean)(keys, batch)
+        est = np.asarray(out, np.float64)
+        if not np.all(np.isfinite(est)):
+            raise RuntimeError(f"{variant.name}: non-finite estimate on scenario {name!r}; please report this")
+        results.append(MethodResult(variant, est, np.linalg.norm(est - truth, axis=-1)))
+        if progress is not None:
+            progress(f"{name}: {variant.name}")
+    return ScenarioResult(name=name, truth=truth, methods=results, burn_in=burn_in)
+
+
+def format_table(result: ScenarioResult, reference: str = "conventional") -> str:
+    """The paper's Table I for one scenario, with ratios to ``reference``."""
+    ref = result.by_name(reference)
+    ref_stats = ref.stats(result.burn_in) if ref is not None else None
+    s, t = result.truth.shape[:2]
+    lines = [
+        f"scenario {result.name}: {s} sequence(s) x {t} steps, errors after step {result.burn_in}",
+        f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18}",
+    ]
+    for m in result.methods:
+        st = m.stats(result.burn_in)
+        ratio = f"{st['mean'] / ref_stats['mean']:.3f}" if ref_stats else "-"
+        lines.append(f"{m.variant.name:<30} {st['mean']:9.4f} {st['max']:9.3f} {st['std']:9.4f} {ratio:>18}")
+    return "\n".join(lines)
+
+
+def plot_scenario(result: ScenarioResult, directory: str | Path) -> list[Path]:
+    """Writes Fig. 4 (error histograms per method) and Fig. 6 (traces of the first sequence) as PNG.
+
+    Raises:
+        RuntimeError: matplotlib is not installed (``pip install "heatpf-jax[plot]"``).
+    """
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"') from None
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    colours = {"heatmap": "tab:red", "conventional": "tab:blue", "kalman": "tab:purple"}
+    shown = [m for m in result.methods if m.variant.name in colours]
+    b = result.burn_in
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    top = max(float(np.percentile(m.errors[:, b:], 99.5)) for m in shown)
+    bins = np.linspace(0.0, max(top, 1e-3), 40)
+    for m in shown:
+        ax.hist(m.errors[:, b:].ravel(), bins=bins, alpha=0.5, label=m.variant.name, color=colours[m.variant.name])
+    ax.set_xlabel("error [m]")
+    ax.set_ylabel("steps")
+    ax.set_title(f"{result.name}: error distribution (Fig. 4)")
+    ax.legend()
+    hist_path = directory / f"{result.name}_errors.png"
+    fig.tight_layout()
+    fig.savefig(hist_path, dpi=100)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 5))
+    ax.plot(result.truth[0, b:, 1], result.truth[0, b:, 0], color="tab:green", label="ground truth", lw=2)
+    for m in shown:
+        ax.plot(m.estimates[0, b:, 1], m.estimates[0, b:, 0], color=colours[m.variant.name], label=m.variant.name, lw=1)
+    ax.set_xlabel("y [m] (left)")
+    ax.set_ylabel("x [m] (forward)")
+    ax.invert_xaxis()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{result.name}: traces in the base frame (Fig. 6)")
+    ax.legend()
+    trace_path = directory / f"{result.name}_traces.png"
+    fig.tight_layout()
+    fig.savefig(trace_path, dpi=100)
+    plt.close(fig)
+    return [hist_path, trace_path]
