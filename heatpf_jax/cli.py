@@ -70,6 +70,18 @@ def error_stats(estimates: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     return {"mean": float(err.mean()), "max": float(err.max()), "std": float(err.std())}
 
 
+def _write_atomic(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
 def write_estimates_csv(path: str | os.PathLike, mean: np.ndarray, cov: np.ndarray) -> None:
     """Writes ``t,x,y,cov_xx,cov_xy,cov_yy`` atomically (temporary file renamed into place)."""
     path = Path(path)
@@ -224,6 +236,143 @@ def _cmd_eval(args) -> int:
     return 0
 
 
+def parse_grid(items: list[str]) -> dict[str, list]:
+    """Parses ``--grid name=v1,v2,...`` into ``{name: [values]}`` (FilterParams fields only).
+
+    Raises:
+        ValueError: naming the field when it is unknown, static, repeated or a value does not parse.
+    """
+    from heatpf_jax.filter import FilterConfig, FilterParams
+
+    grid: dict[str, list] = {}
+    for item in items:
+        name, sep, raw = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not raw.strip():
+            raise ValueError(f"--grid: expected name=v1,v2,..., got {item!r}")
+        if name in FilterConfig._fields:
+            raise ValueError(f"{name}: a static FilterConfig field cannot be swept in one compilation; use --set")
+        if name not in FilterParams._fields:
+            raise ValueError(f"{name}: unknown parameter (known: {', '.join(FilterParams._fields)})")
+        if name in grid:
+            raise ValueError(f"{name}: given twice in --grid")
+        kind = type(FilterParams._field_defaults[name])
+        grid[name] = [_parse(name, v, kind) for v in raw.split(",")]
+    if not grid:
+        raise ValueError("--grid: give at least one name=v1,v2,...")
+    return grid
+
+
+def _grid_key(values) -> tuple[str, ...]:
+    return tuple(f"{float(v):.9g}" for v in values)
+
+
+def _read_done(path: Path, columns: list[str]) -> dict[tuple[str, ...], list[str]]:
+    """Rows already in a sweep CSV, keyed by their parameter values; checks the header."""
+    if not path.exists() or path.stat().st_size == 0:
+        return {}
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",") if lines else []
+    if header != columns:
+        raise ValueError(
+            f"--output: {path} exists with columns {header}, this sweep writes {columns}; "
+            "use another file to start a different sweep"
+        )
+    done = {}
+    n_params = len(columns) - 4
+    for line in lines[1:]:
+        cells = line.split(",")
+        if len(cells) != len(columns):
+            continue  # a row cut short by an interruption: recompute it
+        done[_grid_key(cells[1 : 1 + n_params])] = cells
+    return done
+
+
+def _cmd_sweep(args) -> int:
+    import itertools
+
+    import jax
+
+    from heatpf_jax.filter import stack_params
+    from heatpf_jax.sequence import load_sequence
+    from heatpf_jax.sim import SCENARIOS, simulate
+    from heatpf_jax.sweep import sweep
+
+    params, config = _settings(args)
+    config = config._replace(method=args.method)
+    grid = parse_grid(args.grid or [])
+    if (args.input is None) == (args.scenario is None):
+        raise ValueError("sweep: give either INPUT.npz or --scenario NAME")
+    if args.scenario is not None and args.scenario not in SCENARIOS:
+        raise ValueError(f"--scenario: unknown {args.scenario!r} (known: {', '.join(SCENARIOS)})")
+    if args.seeds < 1 or args.batch_size < 1:
+        raise ValueError("--seeds and --batch-size: must be >= 1")
+    names = list(grid)
+    combos = list(itertools.product(*grid.values()))
+    sets = [params._replace(**dict(zip(names, c, strict=True))) for c in combos]
+    # Check every set before any work.
+    from heatpf_jax.filter import validate_params
+
+    for p in sets:
+        validate_params(p, config)
+
+    if args.input is not None:
+        sequences = [load_sequence(args.input)]
+    else:
+        sequences = [simulate(args.scenario, seed, num_steps=args.steps) for seed in range(args.seeds)]
+    if any(s.ground_truth is None for s in sequences):
+        raise ValueError("ground_truth: the sweep ranks parameter sets by error and needs ground truth")
+    burn_in = min(args.burn_in, sequences[0].num_steps - 1)
+
+    out = Path(args.output)
+    columns = ["index", *names, "mean_error", "max_error", "std_error"]
+    done = _read_done(out, columns)
+    todo = [i for i, c in enumerate(combos) if _grid_key(c) not in done]
+    # Start (or restart) the file with its header and the complete rows only: a row cut short by an
+    # interruption is dropped and recomputed. Written atomically, so the finished rows are never at risk.
+    _write_atomic(out, "".join(",".join(r) + "\n" for r in [columns, *done.values()]))
+    n_dev = len(jax.local_devices())
+    per_call = args.batch_size * n_dev
+    print(
+        f"sweep: {len(combos)} parameter sets ({len(combos) - len(todo)} already in {out}), "
+        f"{len(sequences)} sequence(s) x {sequences[0].num_steps} steps, {n_dev} device(s), "
+        f"{per_call} sets per call"
+    )
+    bar = _progress(len(todo))
+    key = jax.random.key(args.seed)
+    try:
+        for start in range(0, len(todo), per_call):
+            ids = todo[start : start + per_call]
+            padded = ids + [ids[-1]] * (per_call - len(ids))  # same shape every call: one compilation
+            batch = stack_params([sets[i] for i in padded])
+            errors = []
+            for seq in sequences:
+                info = sweep(key, seq, batch, config, chunk=args.batch_size)
+                est = np.asarray(info.mean, np.float64)[: len(ids)]
+                errors.append(np.linalg.norm(est - seq.ground_truth[None], axis=-1)[:, burn_in:])
+            err = np.concatenate(errors, axis=1)
+            if not np.all(np.isfinite(err)):
+                raise RuntimeError("the filter produced a non-finite estimate; please report this")
+            with out.open("a") as fh:
+                for row, i in enumerate(ids):
+                    e = err[row]
+                    values = ",".join(f"{v:.9g}" for v in combos[i])
+                    fh.write(f"{i},{values},{e.mean():.6f},{e.max():.6f},{e.std():.6f}\n")
+                fh.flush()
+            bar.update(len(ids))
+    finally:
+        bar.close()
+
+    rows = list(_read_done(out, columns).values())
+    rows.sort(key=lambda r: float(r[-3]))
+    print(f"best of {len(rows)} by mean error (errors after step {burn_in}, metres):")
+    print("  " + "  ".join(f"{c:>12}" for c in columns[1:]))
+    for r in rows[: args.top]:
+        print("  " + "  ".join(f"{c:>12}" for c in r[1:]))
+    print(f"all results: {out}")
+    return 0
+
+
 def _progress(total: int):
     from tqdm import tqdm
 
@@ -261,6 +410,19 @@ def _build_parser() -> argparse.ArgumentParser:
     p_eval.add_argument("--seed", type=int, default=0, help="PRNG seed of the filters (default 0)")
     p_eval.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter (repeatable)")
     p_eval.set_defaults(func=_cmd_eval)
+
+    p_sweep = sub.add_parser("sweep", help="run the cartesian product of parameter grids, ranked by error")
+    p_sweep.add_argument("input", nargs="?", help="sequence file (.npz with ground_truth); or use --scenario")
+    p_sweep.add_argument("--scenario", help="a simulated scenario instead of a file")
+    p_sweep.add_argument("--grid", action="append", metavar="NAME=V1,V2,...", help="a FilterParams grid (repeatable)")
+    p_sweep.add_argument("--output", "-o", default="sweep.csv", help="results CSV; an existing one is resumed")
+    p_sweep.add_argument("--seeds", type=int, default=1, help="scenario sequences per set (default 1)")
+    p_sweep.add_argument("--steps", type=int, default=None, help="steps per scenario sequence (default 300)")
+    p_sweep.add_argument("--batch-size", type=int, default=16, help="sets vmapped together per device (default 16)")
+    p_sweep.add_argument("--burn-in", type=int, default=10, help="first steps left out of the errors (default 10)")
+    p_sweep.add_argument("--top", type=int, default=5, help="best sets printed (default 5)")
+    common(p_sweep)
+    p_sweep.set_defaults(func=_cmd_sweep)
 
     p_demo = sub.add_parser("demo", help="a short evaluation on a built-in simulated sequence")
     p_demo.add_argument("--steps", type=int, default=300, help="number of filter steps (default 300)")

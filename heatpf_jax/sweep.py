@@ -1,0 +1,146 @@
+"""Parameter sweeps: a batch of ``FilterParams`` through one sequence, in bounded memory, on every device.
+
+``sweep`` runs :func:`heatpf_jax.run` for every parameter set of a batch (a
+leading axis on every ``FilterParams`` field) on the same sequence with the same
+key (common random numbers, so differences between sets are not noise):
+
+* the batch is sharded over the local devices with ``jax.shard_map`` on a
+  one-axis ``Mesh`` (``"batch"``); on several hosts, call
+  ``jax.distributed.initialize()`` first and pass ``devices=jax.devices()``:
+  the same program then spans every host's devices;
+* on each device, ``lax.map(..., batch_size=chunk)`` vmaps ``chunk`` sets at a
+  time, so peak memory grows with ``chunk``, not with the batch;
+* the batch is padded (by repeating its last set) to a multiple of
+  ``devices x chunk``, so one compilation serves any batch of that padded size.
+
+:func:`sweep_memory` reports XLA's own memory analysis of the compiled sweep.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence as PySequence
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+from jax.sharding import Mesh, NamedSharding
+from jax.sharding import PartitionSpec as P
+from jaxtyping import PRNGKeyArray
+
+from heatpf_jax.filter import FilterConfig, FilterParams, StepInfo, _run, validate_config, validate_params
+from heatpf_jax.sequence import Sequence
+
+__all__ = ["SweepMemory", "batch_size_of", "pad_params", "sweep", "sweep_memory"]
+
+
+class SweepMemory(NamedTuple):
+    """XLA's memory analysis of a compiled sweep, bytes (per device)."""
+
+    argument_bytes: int
+    output_bytes: int
+    temp_bytes: int
+
+    @property
+    def peak_bytes(self) -> int:
+        return self.argument_bytes + self.output_bytes + self.temp_bytes
+
+
+def batch_size_of(params: FilterParams) -> int:
+    """The leading batch size of a stacked ``FilterParams``."""
+    sizes = {np.shape(v)[0] if np.ndim(v) else None for v in params}
+    if len(sizes) != 1 or None in sizes:
+        raise ValueError(
+            f"params_batch: every field needs the same leading batch axis, got sizes {sorted(map(str, sizes))}"
+        )
+    return int(sizes.pop())
+
+
+def pad_params(params: FilterParams, size: int) -> FilterParams:
+    """Pads a batch to ``size`` sets by repeating its last set."""
+    n = batch_size_of(params)
+    if size < n:
+        raise ValueError(f"pad size {size} is smaller than the batch ({n})")
+    idx = np.minimum(np.arange(size), n - 1)
+    return jax.tree.map(lambda v: jnp.asarray(v)[idx], params)
+
+
+def _mesh(devices: PySequence[jax.Device] | None) -> Mesh:
+    devices = list(jax.local_devices() if devices is None else devices)
+    return Mesh(np.array(devices), ("batch",))
+
+
+@partial(jax.jit, static_argnames=("config", "chunk", "mesh"))
+def _sweep_jit(key, sequence: Sequence, params: FilterParams, config: FilterConfig, chunk: int, mesh: Mesh) -> StepInfo:
+    def local(p_local: FilterParams) -> StepInfo:
+        return lax.map(lambda p: _run(key, sequence, p, config).info, p_local, batch_size=chunk)
+
+    # check_vma=False: the filter mixes per-set (varying) and shared values in lax.cond branches.
+    return jax.shard_map(local, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"), check_vma=False)(params)
+
+
+def _prepare(key, sequence: Sequence, params_batch: FilterParams, config: FilterConfig, chunk, devices):
+    validate_config(config)
+    validate_params(params_batch, config)
+    n = batch_size_of(params_batch)
+    mesh = _mesh(devices)
+    n_dev = mesh.devices.size
+    chunk = int(min(chunk or n, -(-n // n_dev)))
+    if chunk < 1:
+        raise ValueError(f"chunk: must be >= 1, got {chunk}")
+    padded = -(-n // (n_dev * chunk)) * n_dev * chunk
+    params = jax.device_put(pad_params(params_batch.as_arrays(), padded), NamedSharding(mesh, P("batch")))
+    odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
+    sequence = sequence._replace(odometry=odometry, ground_truth=None)
+    return key, sequence, params, config, chunk, mesh, n
+
+
+def sweep(
+    key: PRNGKeyArray,
+    sequence: Sequence,
+    params_batch: FilterParams,
+    config: FilterConfig,
+    *,
+    chunk: int | None = None,
+    devices: PySequence[jax.Device] | None = None,
+) -> StepInfo:
+    """Runs the filter once per parameter set of ``params_batch`` on ``sequence``.
+
+    Args:
+        key: PRNG key, shared by every parameter set (common random numbers).
+        sequence: one sequence.
+        params_batch: :class:`FilterParams` whose fields have a leading batch axis B
+            (see :func:`heatpf_jax.stack_params`).
+        config: static configuration shared by the batch.
+        chunk: parameter sets vmapped together on a device (default: all of the
+            device's share); peak memory grows with it.
+        devices: devices to shard the batch over (default: ``jax.local_devices()``).
+
+    Returns:
+        :class:`StepInfo` with leading axes ``[B, T]``; equal to
+        ``jax.vmap(lambda p: run(key, sequence, p, config).info)(params_batch)``.
+    """
+    key, sequence, params, config, chunk, mesh, n = _prepare(key, sequence, params_batch, config, chunk, devices)
+    info = _sweep_jit(key, sequence, params, config, chunk, mesh)
+    return jax.tree.map(lambda v: v[:n], info)
+
+
+def sweep_memory(
+    key: PRNGKeyArray,
+    sequence: Sequence,
+    params_batch: FilterParams,
+    config: FilterConfig,
+    *,
+    chunk: int | None = None,
+    devices: PySequence[jax.Device] | None = None,
+) -> SweepMemory:
+    """XLA's memory analysis (arguments, outputs, temporaries; per device) of the compiled sweep."""
+    args = _prepare(key, sequence, params_batch, config, chunk, devices)[:-1]
+    stats = _sweep_jit.lower(*args).compile().memory_analysis()
+    return SweepMemory(
+        argument_bytes=int(stats.argument_size_in_bytes),
+        output_bytes=int(stats.output_size_in_bytes),
+        temp_bytes=int(stats.temp_size_in_bytes),
+    )

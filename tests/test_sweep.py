@@ -1,0 +1,159 @@
+"""Sweeps: equal to vmapped single runs, bounded memory per chunk, identical on two devices, resumable CLI."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax.cli import main, parse_grid
+from heatpf_jax.sweep import _sweep_jit, batch_size_of, sweep, sweep_memory
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _batch():
+    sets = [hp.FilterParams(k=k, threshold=t, diffusion_std=d) for k in (1, 4) for t in (0.3, 0.5) for d in (0.1, 0.2)]
+    return hp.stack_params(sets[:7])  # 7: not a multiple of the chunk, exercises padding
+
+
+def test_sweep_equals_vmapped_runs_for_every_chunk(small_sequence, small_config):
+    batch = _batch()
+    key = jax.random.key(4)
+    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_config).info)(batch)
+    for chunk in (1, 3, None):
+        out = sweep(key, small_sequence, batch, small_config, chunk=chunk)
+        assert out.mean.shape == (7, small_sequence.num_steps, 2)
+        np.testing.assert_allclose(np.asarray(out.mean), np.asarray(ref.mean), rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(np.asarray(out.cov), np.asarray(ref.cov), rtol=1e-4, atol=1e-6)
+    # Different parameter sets give different answers (the batch axis is really used).
+    assert np.abs(np.asarray(out.mean[0]) - np.asarray(out.mean[5])).max() > 1e-3
+
+
+def test_sweep_compiles_once_for_repeated_calls(small_sequence, small_config):
+    batch = _batch()
+    sweep(jax.random.key(0), small_sequence, batch, small_config, chunk=2)
+    before = _sweep_jit._cache_size()
+    other = jax.tree.map(lambda v: v[::-1], batch)  # new values, same shapes
+    sweep(jax.random.key(1), small_sequence, other, small_config, chunk=2)
+    assert _sweep_jit._cache_size() == before
+
+
+def test_peak_memory_grows_with_chunk_not_batch(small_sequence, small_config):
+    key = jax.random.key(0)
+    small = hp.stack_params([hp.FilterParams(k=1 + i % 4) for i in range(8)])
+    big = hp.stack_params([hp.FilterParams(k=1 + i % 4) for i in range(32)])
+    m_small = sweep_memory(key, small_sequence, small, small_config, chunk=2)
+    m_big = sweep_memory(key, small_sequence, big, small_config, chunk=2)
+    m_chunk = sweep_memory(key, small_sequence, big, small_config, chunk=8)
+    # Temporaries: independent of the batch at a fixed chunk, and larger for a larger chunk.
+    assert m_big.temp_bytes <= 1.1 * m_small.temp_bytes
+    assert m_chunk.temp_bytes > 2 * m_big.temp_bytes
+
+
+def test_batch_axis_errors():
+    with pytest.raises(ValueError, match="params_batch"):
+        batch_size_of(hp.FilterParams())
+    with pytest.raises(ValueError, match="k"):
+        bad = hp.stack_params([hp.FilterParams(k=1), hp.FilterParams(k=99)])
+        sweep(jax.random.key(0), None, bad, hp.FilterConfig(k_max=8))
+
+
+def test_two_devices_give_identical_results(small_sequence, small_config, tmp_path):
+    batch = _batch()
+    key = jax.random.key(2)
+    one = np.asarray(sweep(key, small_sequence, batch, small_config, chunk=2).mean)
+    np.save(tmp_path / "one.npy", one)
+    script = textwrap.dedent(f"""
+        import jax, numpy as np
+        assert len(jax.devices()) == 2, jax.devices()
+        import heatpf_jax as hp
+        from heatpf_jax.sim import simulate_standard
+        from heatpf_jax.sweep import sweep
+        from tests.test_sweep import _batch
+        from tests.conftest import SMALL_CONFIG
+        seq = simulate_standard(3, num_steps=20, shrink=4)
+        two = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_CONFIG, chunk=2).mean)
+        one = np.load({str(tmp_path / "one.npy")!r})
+        np.testing.assert_allclose(two, one, rtol=1e-5, atol=1e-5)
+        print("identical on", len(jax.devices()), "devices")
+    """)
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", PYTHONPATH=str(ROOT))
+    proc = subprocess.run(
+        [sys.executable, "-c", script], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "identical on 2 devices" in proc.stdout
+
+
+def test_parse_grid_errors():
+    assert parse_grid(["k=1,3", "aging=0.1,0.2"]) == {"k": [1, 3], "aging": [0.1, 0.2]}
+    for bad, field in [
+        (["num_particles=10,20"], "num_particles"),
+        (["nope=1"], "nope"),
+        (["k=1", "k=2"], "k"),
+        (["threshold=x"], "threshold"),
+        (["k"], "--grid"),
+    ]:
+        with pytest.raises(ValueError) as info:
+            parse_grid(bad)
+        assert str(info.value).startswith(field)
+
+
+def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_config, capsys):
+    path = tmp_path / "seq.npz"
+    hp.save_sequence(path, small_sequence)
+    out = tmp_path / "sweep.csv"
+    args = [
+        "sweep",
+        str(path),
+        "-o",
+        str(out),
+        "--grid",
+        "k=1,2,3",
+        "--grid",
+        "diffusion_std=0.1,0.2",
+        "--batch-size",
+        "2",
+        "--set",
+        f"num_particles={small_config.num_particles}",
+        "--set",
+        f"max_measurements={small_config.max_measurements}",
+        "--set",
+        f"k_max={small_config.k_max}",
+    ]
+    assert main(args) == 0
+    full = out.read_text()
+    lines = full.splitlines()
+    assert lines[0] == "index,k,diffusion_std,mean_error,max_error,std_error" and len(lines) == 7
+    # Each row's error is that of a single run with those parameters (same key).
+    row = lines[4].split(",")
+    params = small_config
+    info = hp.run(
+        jax.random.key(0), small_sequence, hp.FilterParams(k=int(row[1]), diffusion_std=float(row[2])), params
+    ).info
+    err = np.linalg.norm(np.asarray(info.mean, np.float64) - small_sequence.ground_truth, axis=1)[10:]
+    assert float(row[3]) == pytest.approx(err.mean(), rel=1e-4, abs=1e-6)
+    printed = capsys.readouterr().out
+    best = min(lines[1:], key=lambda r: float(r.split(",")[3]))
+    assert printed.split("best of 6")[1].splitlines()[2].split() == best.split(",")[1:]
+
+    # Interrupted: the last two rows lost and one cut in half. Resuming recomputes only those.
+    cut = "\n".join(lines[:5]) + "\n" + lines[5][:7]
+    out.write_text(cut)
+    assert main(args) == 0
+    assert "(4 already in" in capsys.readouterr().out
+    resumed = out.read_text().splitlines()
+    assert resumed[:5] == lines[:5]  # finished rows untouched, the cut row dropped
+    assert sorted(resumed[1:], key=lambda r: int(r.split(",")[0])) == lines[1:]
+
+    # A different sweep into the same file is refused, and the file is kept.
+    before = out.read_text()
+    assert main(["sweep", str(path), "-o", str(out), "--grid", "aging=0.1,0.2"]) == 2
+    assert "--output" in capsys.readouterr().err
+    assert out.read_text() == before
