@@ -56,9 +56,12 @@ class MethodResult:
     estimates: np.ndarray  # [S, T, 2]
     errors: np.ndarray  # [S, T] Euclidean error, metres
 
-    def stats(self, burn_in: int) -> dict[str, float]:
+    def stats(self, burn_in: int, end_steps: int = 30) -> dict[str, float]:
+        """Mean, max, std of the error after ``burn_in``; ``end``: mean error of the last ``end_steps``
+        steps of each sequence (a filter that diverged for good shows it there)."""
         e = self.errors[:, burn_in:].ravel()
-        return {"mean": float(e.mean()), "max": float(e.max()), "std": float(e.std())}
+        end = self.errors[:, -min(end_steps, self.errors.shape[1]) :]
+        return {"mean": float(e.mean()), "max": float(e.max()), "std": float(e.std()), "end": float(end.mean())}
 
 
 @dataclass
@@ -139,12 +142,14 @@ def format_table(result: ScenarioResult, reference: str = "conventional") -> str
     s, t = result.truth.shape[:2]
     lines = [
         f"scenario {result.name}: {s} sequence(s) x {t} steps, errors after step {result.burn_in}",
-        f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18}",
+        f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18} {'last 30 [m]':>13}",
     ]
     for m in result.methods:
         st = m.stats(result.burn_in)
         ratio = f"{st['mean'] / ref_stats['mean']:.3f}" if ref_stats else "-"
-        lines.append(f"{m.variant.name:<30} {st['mean']:9.4f} {st['max']:9.3f} {st['std']:9.4f} {ratio:>18}")
+        lines.append(
+            f"{m.variant.name:<30} {st['mean']:9.4f} {st['max']:9.3f} {st['std']:9.4f} {ratio:>18} {st['end']:13.4f}"
+        )
     return "\n".join(lines)
 
 

@@ -134,7 +134,7 @@ class FilterParams(NamedTuple):
 
     k: int = 3
     threshold: float = 0.3
-    aging: float = 0.05
+    aging: float = 0.3
     min_weight: float = 0.1
     diffusion_std: float = 0.2
     odom_trans_noise: float = 0.1

@@ -129,41 +129,51 @@ def project_heatmap(
     heatmap, intrinsics = downscale_heatmap(heatmap, intrinsics, downscale)
     h, w = heatmap.shape
     n_pix = h * w
-    rows, cols = jnp.meshgrid(
-        jnp.arange(h, dtype=jnp.float32), jnp.arange(w, dtype=jnp.float32), indexing="ij"
-    )
-    uv = jnp.stack([cols.ravel(), rows.ravel()], axis=-1)
+    act = jnp.asarray(heatmap, jnp.float32).ravel()
+    passes = _rays_hit(h, w, intrinsics, cam_to_base, plane_height, max_distance).ravel() & (act >= threshold)
+
+    # The strongest passing pixels (all of them when they fit), back in raster order. top_k over the
+    # H*W scores is cheaper on XLA:CPU than a cumsum-based compaction.
+    m = int(max_measurements)
+    k = min(m, n_pix)
+    _, idx = lax.top_k(jnp.where(passes, act, -1.0), k)
+    # One sort puts the passing pixels first, in raster order, then the rest.
+    idx = jnp.sort(jnp.where(passes[idx], idx, idx + n_pix)) % n_pix
+    uv = jnp.stack([(idx % w).astype(jnp.float32), (idx // w).astype(jnp.float32)], axis=-1)
     xy, ray_ok = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))(
         uv, intrinsics, cam_to_base, plane_height, max_distance
     )
-    act = heatmap.ravel().astype(jnp.float32)
-    passes = ray_ok & (act >= threshold)
-
-    m = int(max_measurements)
-
-    def compact(_):
-        # Stable compaction in raster order: passing pixel number j goes to slot j.
-        slot = jnp.where(passes, jnp.cumsum(passes) - 1, m)
-        idx = jnp.full((m + 1,), n_pix, jnp.int32).at[slot].set(jnp.arange(n_pix, dtype=jnp.int32))
-        return idx[:m]
-
-    def strongest(_):
-        score = jnp.where(passes, act, -1.0)
-        _, idx = lax.top_k(score, m)
-        return jnp.sort(idx).astype(jnp.int32)
-
-    if m >= n_pix:  # every pixel fits
-        idx = compact(None)
-    else:
-        idx = lax.cond(jnp.sum(passes) <= m, compact, strongest, None)
-    inside = idx < n_pix
-    safe = jnp.where(inside, idx, 0)
-    valid = inside & passes[safe]
+    valid = passes[idx] & ray_ok
+    weight = act[idx]
+    pad = m - k
     return Measurements(
-        xy=jnp.where(valid[:, None], xy[safe], 0.0),
-        weight=jnp.where(valid, act[safe], 0.0),
-        valid=valid,
+        xy=jnp.pad(jnp.where(valid[:, None], xy, 0.0), ((0, pad), (0, 0))),
+        weight=jnp.pad(jnp.where(valid, weight, 0.0), (0, pad)),
+        valid=jnp.pad(valid, (0, pad)),
     )
+
+
+def _rays_hit(h: int, w: int, intrinsics, cam_to_base, plane_height, max_distance) -> Bool[Array, "h w"]:
+    """Which pixel rays meet the plane in front of the camera within ``max_distance`` (all pixels at once).
+
+    The same test as :func:`~heatpf_jax.camera.project_pixel`, written as outer sums over rows and
+    columns so the whole image costs a few fused element-wise passes.
+    """
+    intrinsics = jnp.asarray(intrinsics, jnp.float32)
+    pose = jnp.asarray(cam_to_base, jnp.float32)
+    a = (jnp.arange(w, dtype=jnp.float32) - intrinsics[2]) / intrinsics[0]
+    b = (jnp.arange(h, dtype=jnp.float32) - intrinsics[3]) / intrinsics[1]
+    rot, origin = pose[:3, :3], pose[:3, 3]
+
+    def component(i):
+        return rot[i, 0] * a[None, :] + (rot[i, 1] * b + rot[i, 2])[:, None]
+
+    dx, dy, dz = component(0), component(1), component(2)
+    hits = jnp.abs(dz) > 1e-9
+    scale = (plane_height - origin[2]) / jnp.where(hits, dz, 1.0)
+    x = origin[0] + scale * dx
+    y = origin[1] + scale * dy
+    return hits & (scale > 0.0) & (x * x + y * y <= jnp.square(max_distance)) & jnp.isfinite(x) & jnp.isfinite(y)
 
 
 def age_measurements(
