@@ -91,7 +91,11 @@ def _prepare(key, sequence: Sequence, params_batch: FilterParams, config: Filter
     if chunk < 1:
         raise ValueError(f"chunk: must be >= 1, got {chunk}")
     padded = -(-n // (n_dev * chunk)) * n_dev * chunk
-    params = jax.device_put(pad_params(params_batch.as_arrays(), padded), NamedSharding(mesh, P("batch")))
+    sharding = NamedSharding(mesh, P("batch"))
+    host = jax.tree.map(np.asarray, pad_params(params_batch.as_arrays(), padded))
+    # Every process holds the whole (small) batch; each device takes its slice. This also builds the
+    # global array when the mesh spans several hosts (after jax.distributed.initialize()).
+    params = jax.tree.map(lambda v: jax.make_array_from_callback(v.shape, sharding, lambda i, v=v: v[i]), host)
     odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
     sequence = sequence._replace(odometry=odometry, ground_truth=None)
     return key, sequence, params, config, chunk, mesh, n
@@ -124,6 +128,10 @@ def sweep(
     """
     key, sequence, params, config, chunk, mesh, n = _prepare(key, sequence, params_batch, config, chunk, devices)
     info = _sweep_jit(key, sequence, params, config, chunk, mesh)
+    if not all(leaf.is_fully_addressable for leaf in jax.tree.leaves(info)):  # several hosts: gather
+        from jax.experimental import multihost_utils
+
+        info = multihost_utils.process_allgather(info, tiled=True)
     return jax.tree.map(lambda v: v[:n], info)
 
 
