@@ -84,3 +84,30 @@ def test_overrides_reach_params_and_config():
                                      ["k=7", "aging=0.2", "resampler=residual", "spawn_box=-1,1,-2,2"])
     assert params.k == 7 and isinstance(params.k, int) and params.aging == 0.2
     assert config.resampler == "residual" and config.spawn_box == (-1.0, 1.0, -2.0, 2.0)
+
+
+def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys):
+    small = ["--set", "num_particles=64", "--set", "max_measurements=64", "--set", "k_max=4"]
+    plots = tmp_path / "plots"
+    assert main(["eval", "--scenario", "split", "--seeds", "2", "--steps", "25", "--plot", str(plots), *small]) == 0
+    out = capsys.readouterr().out
+    assert "scenario split: 2 sequence(s) x 25 steps" in out
+    for method in ("heatmap", "conventional", "kalman", "no aging"):
+        assert method in out
+    conventional = next(line for line in out.splitlines() if line.startswith("conventional"))
+    assert conventional.split()[4] == "1.000"  # its ratio to itself
+    assert sorted(p.name for p in plots.iterdir()) == ["split_errors.png", "split_traces.png"]
+    assert all((plots / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for n in ("split_errors.png", "split_traces.png"))
+
+
+def test_eval_on_a_recording_and_its_errors(tmp_path, seq_file, capsys):
+    path, seq = seq_file
+    small = ["--set", "num_particles=128", "--set", "max_measurements=128", "--set", "k_max=8"]
+    assert main(["eval", "--input", str(path), *small]) == 0
+    assert f"scenario {path.stem}: 1 sequence(s) x {seq.num_steps} steps" in capsys.readouterr().out
+    nogt = tmp_path / "nogt.npz"
+    hp.save_sequence(nogt, seq._replace(ground_truth=None))
+    assert main(["eval", "--input", str(nogt)]) == 2
+    assert "ground_truth" in capsys.readouterr().err
+    assert main(["eval", "--scenario", "nope"]) == 2
+    assert "--scenario" in capsys.readouterr().err
