@@ -22,9 +22,14 @@ Layouts (all buffers full: the threshold lets at least M pixels pass, so the str
 Particles: a Gaussian cloud (0.3 m) around the blob centre(s) on the ground plus 5 % uniform explorers
 in a 7 x 8 m box (x in [0, 7], y in [-4, 4]).
 
-Timing: ``time.perf_counter`` around one call (``block_until_ready`` for JAX), the four methods in turn
-within each repetition (so they share the machine's load), after compilation and a few warm-up calls;
-the table gives the median and the interquartile range over ``--repeats`` repetitions. ``blocked /
+Timing: ``time.perf_counter`` around one call (``block_until_ready`` for JAX), after compilation and a few
+warm-up calls, in 4 rounds of blocks: each round runs a block of consecutive calls of every method in
+turn (so they share the machine's load; consecutive calls keep each method's allocations warm).
+``blocked`` and ``cKDTree`` are timed this way for every case first; ``top_k`` and ``NumPy brute``
+afterwards (they allocate up to 66 MB per call, and interleaving them slowed the others down through
+page faults and cache pollution). The table gives the median and the interquartile range over
+``--repeats`` calls per method; the header and footer print the load average, since other processes on
+the machine move these numbers. ``blocked /
 cKDTree`` is the ratio of the medians (< 1: blocked is faster). ``max rel`` is the largest relative
 difference between the blocked and the top_k weights; ``same sets`` counts particles whose selected
 (squared distance, weight, selected) rows from ``k_nearest_blocked`` and ``heatpf_jax.k_nearest`` are
@@ -33,7 +38,7 @@ identical.
 Run it from the repository root::
 
     .venv/bin/python benchmarks/bench_weights.py [--repeats N] [--sizes 500x1024,1000x4096,2000x8192]
-        [--k 10] [--layouts blob,2blobs,uniform]
+        [--k 10] [--layouts blob,2blobs,uniform] [--methods blocked,top_k,cKDTree,NumPy brute]
 
 It exits with status 1 if any blocked weight differs from the top_k weight by more than 1e-5 (relative).
 """
@@ -65,6 +70,7 @@ PLANE_HEIGHT = 0.075
 MIN_DISTANCE = 0.01
 RTOL = 1e-5
 WARMUP = 3
+BLOCKS = 4  # alternating timing blocks per case
 CLOUD_STD = 0.3
 EXPLORER_FRACTION = 0.05
 EXPLORER_BOX = ((0.0, -4.0), (7.0, 4.0))
@@ -74,6 +80,8 @@ BLOBS = {
     "2blobs": ((55.0, 95.0, 30.0, 0.9), (145.0, 110.0, 32.0, 0.9)),
 }
 LAYOUTS = ("blob", "2blobs", "uniform")
+METHODS = ("blocked", "top_k", "cKDTree", "NumPy brute")
+LIGHT_METHODS = ("blocked", "cKDTree")  # timed side by side, before the dense references
 
 
 def parse_sizes(text: str) -> list[tuple[int, int]]:
@@ -96,6 +104,16 @@ def parse_layouts(text: str) -> list[str]:
         if name not in LAYOUTS:
             raise argparse.ArgumentTypeError(f"layout {name!r}: choose from {', '.join(LAYOUTS)}")
     return names
+
+
+def parse_methods(text: str) -> list[str]:
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    for name in names:
+        if name not in METHODS:
+            raise argparse.ArgumentTypeError(f"method {name!r}: choose from {', '.join(METHODS)}")
+    if "blocked" not in names:
+        raise argparse.ArgumentTypeError("methods: 'blocked' is required")
+    return [m for m in METHODS if m in names]
 
 
 def positive_int(text: str) -> int:
@@ -196,18 +214,26 @@ def brute_weights(p32: np.ndarray, xy32: np.ndarray, weight: np.ndarray, valid: 
 # --------------------------------------------------------------------------- timing
 
 
-def time_round_robin(calls: list[Callable[[], object]], repeats: int) -> list[np.ndarray]:
-    """Seconds per call for each callable, interleaved: one call of each per repetition."""
-    for _ in range(WARMUP):
-        for call in calls:
+def time_blocks(calls: list[Callable[[], object]], repeats: int, blocks: int = BLOCKS) -> list[np.ndarray]:
+    """Seconds per call for each callable: ``blocks`` rounds in which each callable runs a block of calls.
+
+    Consecutive calls of one function keep its allocations warm (interleaving single calls of four
+    implementations mostly measures allocator and cache churn); alternating blocks lets all of them
+    share the machine's load over the whole run. One untimed call opens every block.
+    """
+    for call in calls:
+        for _ in range(WARMUP):
             call()
-    times = np.empty((len(calls), repeats))
-    for r in range(repeats):
+    sizes = [repeats // blocks + (1 if b < repeats % blocks else 0) for b in range(blocks)]
+    times: list[list[float]] = [[] for _ in calls]
+    for size in sizes:
         for j, call in enumerate(calls):
-            t0 = time.perf_counter()
             call()
-            times[j, r] = time.perf_counter() - t0
-    return list(times)
+            for _ in range(size):
+                t0 = time.perf_counter()
+                call()
+                times[j].append(time.perf_counter() - t0)
+    return [np.asarray(t) for t in times]
 
 
 def first_call(fn: Callable[[], object]) -> float:
@@ -227,7 +253,8 @@ def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), np.finfo(np.float64).tiny)))
 
 
-def bench_case(n: int, m: int, k: int, layout: str, repeats: int) -> dict:
+def prepare_case(n: int, m: int, k: int, layout: str) -> dict:
+    """Inputs, compiled functions and the four callables of one case."""
     if layout == "uniform":
         like, centres = blob_buffer(BLOBS["blob"], m)
         meas = uniform_buffer(like)
@@ -247,14 +274,6 @@ def bench_case(n: int, m: int, k: int, layout: str, repeats: int) -> dict:
     w64 = np.asarray(meas.weight, np.float64)
     valid = np.asarray(meas.valid)
 
-    calls = [
-        lambda: ours(particles, meas).block_until_ready(),
-        lambda: plain(particles, meas).block_until_ready(),
-        lambda: ckdtree_weights(p64, xy64, w64, valid, k),
-        lambda: brute_weights(p32, xy32, w64, valid, k),
-    ]
-    t_ours, t_plain, t_tree, t_brute = time_round_robin(calls, repeats)
-
     got = np.asarray(ours(particles, meas))
     want = np.asarray(plain(particles, meas))
     tree = ckdtree_weights(p64, xy64, w64, valid, k)
@@ -266,13 +285,28 @@ def bench_case(n: int, m: int, k: int, layout: str, repeats: int) -> dict:
     return {
         "P": n, "M": m, "layout": layout, "n_valid": int(valid.sum()),
         "plan": plan_blocks(m, k).fanouts,
-        "times": {"blocked": t_ours, "top_k": t_plain, "cKDTree": t_tree, "NumPy brute": t_brute},
+        "calls": {
+            "blocked": lambda: ours(particles, meas).block_until_ready(),
+            "top_k": lambda: plain(particles, meas).block_until_ready(),
+            "cKDTree": lambda: ckdtree_weights(p64, xy64, w64, valid, k),
+            "NumPy brute": lambda: brute_weights(p32, xy32, w64, valid, k),
+        },
+        "times": {},
         "compile": (compile_ours, compile_plain),
         "rel_plain": rel_diff(got, want),
         "rel_tree": rel_diff(tree, want),
         "rel_brute": rel_diff(brute, want),
         "same_sets": int(same.sum()),
     }
+
+
+def time_phase(cases: list[dict], methods: list[str], repeats: int) -> None:
+    """Times ``methods`` of every case (alternating blocks within a case), storing into ``case['times']``."""
+    if not methods:
+        return
+    for case in cases:
+        times = time_blocks([case["calls"][name] for name in methods], repeats)
+        case["times"].update(zip(methods, times, strict=True))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -283,6 +317,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--k", type=positive_int, default=10, help="neighbours per particle (default 10)")
     parser.add_argument("--layouts", type=parse_layouts, default=list(LAYOUTS),
                         help=f"comma-separated measurement layouts (default {','.join(LAYOUTS)})")
+    parser.add_argument("--methods", type=parse_methods, default=list(METHODS),
+                        help=f"comma-separated methods to time (default {','.join(METHODS)}; blocked is required)")
     args = parser.parse_args(argv)
 
     dev = jax.devices()[0]
@@ -292,15 +328,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"device: {dev.platform} / {dev.device_kind} ({len(jax.devices())} device(s))  "
           f"os.cpu_count(): {os.cpu_count()}  machine: {platform.machine()}  "
           f"XLA_FLAGS: {os.environ.get('XLA_FLAGS', '(unset)')}")
-    print(f"k = {args.k}, repeats = {args.repeats} (+{WARMUP} warm-up, methods interleaved), "
+    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print(f"k = {args.k}, repeats = {args.repeats} (+{WARMUP} warm-up; {BLOCKS} alternating blocks), "
           f"heat map {HEATMAP_SHAPE[1]}x{HEATMAP_SHAPE[0]}, min_distance = {MIN_DISTANCE}")
     print("times in ms: median (IQR = q3 - q1); compile = first call of the jitted function, s")
     print()
 
     t_start = time.perf_counter()
-    results = [bench_case(p, m, args.k, layout, args.repeats) for p, m in args.sizes for layout in args.layouts]
+    results = [prepare_case(p, m, args.k, layout) for p, m in args.sizes for layout in args.layouts]
+    # The compared methods first, for all cases; then the dense references. The dense ones allocate
+    # 2-66 MB per call, and interleaving them slowed the others (blocked 3.2 instead of 1.6 ms at
+    # 1000 x 4096) through page faults and cache pollution.
+    time_phase(results, [name for name in args.methods if name in LIGHT_METHODS], args.repeats)
+    time_phase(results, [name for name in args.methods if name not in LIGHT_METHODS], args.repeats)
 
-    methods = ("blocked", "top_k", "cKDTree", "NumPy brute")
+    methods = args.methods
     header = (f"{'P':>5} {'M':>5} {'layout':<8} {'valid':>5} "
               + " ".join(f"{name:>17}" for name in methods)
               + f" {'blocked/cKDTree':>15} {'max rel':>8} {'same sets':>10}")
@@ -311,9 +353,12 @@ def main(argv: list[str] | None = None) -> int:
         for name in methods:
             med, iqr = stats_ms(res["times"][name])
             cells.append(f"{med:8.3f} ({iqr:6.3f})")
-        ratio = stats_ms(res["times"]["blocked"])[0] / stats_ms(res["times"]["cKDTree"])[0]
+        if "cKDTree" in methods:
+            ratio = f"{stats_ms(res['times']['blocked'])[0] / stats_ms(res['times']['cKDTree'])[0]:15.2f}"
+        else:
+            ratio = f"{'-':>15}"
         print(f"{res['P']:>5} {res['M']:>5} {res['layout']:<8} {res['n_valid']:>5} " + " ".join(cells)
-              + f" {ratio:15.2f} {res['rel_plain']:8.1e} {res['same_sets']:>5}/{res['P']:<4}")
+              + f" {ratio} {res['rel_plain']:8.1e} {res['same_sets']:>5}/{res['P']:<4}")
     print()
     print("plans, compile times and the other implementations' agreement with top_k (max relative difference):")
     for res in results:
@@ -323,7 +368,8 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("blocked/cKDTree: ratio of medians (< 1: blocked is faster). max rel: blocked vs top_k weights.")
     print(f"same sets: particles whose (sq_dist, weight, selected) rows equal heatpf_jax.k_nearest's exactly. "
-          f"Total {time.perf_counter() - t_start:.0f} s.")
+          f"Total {time.perf_counter() - t_start:.0f} s; load average at end: "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}.")
     return 0 if all(res["rel_plain"] <= RTOL for res in results) else 1
 
 

@@ -21,6 +21,7 @@ from heatpf_jax.filter import (
     validate_config,
     validate_params,
 )
+from heatpf_jax.knn import k_nearest_blocked
 from heatpf_jax.measurements import (
     Measurements,
     age_measurements,
@@ -67,6 +68,7 @@ __all__ = [
     "gaussian_particle_weights",
     "init",
     "k_nearest",
+    "k_nearest_blocked",
     "load_sequence",
     "move_measurements",
     "move_particles",

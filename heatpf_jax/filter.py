@@ -43,7 +43,7 @@ from heatpf_jax.measurements import (
     update_buffer,
 )
 from heatpf_jax.motion import diffuse, move_particles
-from heatpf_jax.observation import gaussian_particle_weights, particle_weights
+from heatpf_jax.observation import KNN_METHODS, gaussian_particle_weights, particle_weights
 from heatpf_jax.resampling import RESAMPLERS, effective_sample_size
 from heatpf_jax.sequence import Sequence
 
@@ -91,6 +91,9 @@ class FilterConfig(NamedTuple):
             strongest image-space cluster (IV-B, :mod:`heatpf_jax.clusters`), with a
             one-slot buffer; ``"kalman"``: a constant-velocity Kalman filter on that
             same measurement (:mod:`heatpf_jax.kalman`).
+        knn: k-nearest search of eq. (1): ``"auto"`` (default: the exact blocked kernel
+            of :mod:`heatpf_jax.knn` for buffers of 256 slots or more, the plain ``top_k``
+            below), ``"blocked"`` or ``"dense"``. All give the same weights.
     """
 
     num_particles: int = 500
@@ -102,6 +105,7 @@ class FilterConfig(NamedTuple):
     downscale: int = 1
     observation: str = "inverse_distance"
     method: str = "heatmap"
+    knn: str = "auto"
 
     @property
     def buffer_size(self) -> int:
@@ -250,6 +254,8 @@ def validate_config(config: FilterConfig) -> None:
         raise ValueError(f"spawn: must be one of {list(SPAWNS)}, got {config.spawn!r}")
     if config.method not in METHODS:
         raise ValueError(f"method: must be one of {list(METHODS)}, got {config.method!r}")
+    if config.knn not in KNN_METHODS:
+        raise ValueError(f"knn: must be one of {list(KNN_METHODS)}, got {config.knn!r}")
     if config.observation not in OBSERVATIONS:
         raise ValueError(f"observation: must be one of {list(OBSERVATIONS)}, got {config.observation!r}")
     box = tuple(config.spawn_box)
@@ -342,8 +348,12 @@ def _normalise_log(log_w: Float[Array, " n"]) -> Float[Array, " n"]:
 
 def _observe(particles, buffer: Measurements, params: FilterParams, config: FilterConfig):
     if config.observation == "gaussian":
-        return gaussian_particle_weights(particles, buffer, params.k, std=params.obs_std, k_max=config.k_max)
-    return particle_weights(particles, buffer, params.k, k_max=config.k_max, min_distance=params.min_distance)
+        return gaussian_particle_weights(
+            particles, buffer, params.k, std=params.obs_std, k_max=config.k_max, method=config.knn
+        )
+    return particle_weights(
+        particles, buffer, params.k, k_max=config.k_max, min_distance=params.min_distance, method=config.knn
+    )
 
 
 def measure(inputs: StepInputs, params: FilterParams, config: FilterConfig) -> Measurements:

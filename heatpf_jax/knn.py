@@ -19,41 +19,48 @@ not depend on it.
 1. *Block minima* (the only pass over all ``N x M`` pairs): for every particle
    and leaf block, the minimum squared distance to the block's valid members,
    as ``b`` elementwise ``[G, N]`` planes folded with ``minimum`` (no ``[N, M]``
-   matrix, no ``[N, M, 2]`` tensor). Group minima at the upper levels are
-   minima of their children.
+   matrix, no ``[N, M, 2]`` tensor; particles on the minor axis). Group minima at
+   the upper levels are minima of their children.
 2. *Top-down selection*: at the top level keep the ``kk = min(k_max, M)`` groups
    with the smallest minima; at each lower level keep the ``kk`` smallest among
    the children of the groups kept so far (``kk * f`` candidates); at the leaves
    keep the ``kk`` nearest of the ``kk * b`` member measurements, in increasing
-   distance. Selections use ``kk`` rounds of (row minimum, first index of that
-   minimum, mask it), which on XLA:CPU is several times faster than ``lax.top_k``
-   on these short rows. Work per particle: ``M`` distances plus
-   ``kk * (G_top + kk * f_L + ... + kk * f_1 + kk * b)`` compare-selects instead of
+   distance. Each selection takes ``kk`` rounds of (column minimum, first row
+   holding it, mask that row) on a ``[candidates, N]`` array, ordering candidates
+   by ``(value, position)``; on XLA:CPU this is several times faster than
+   ``lax.top_k`` on such short rows. Work per particle: ``M`` distances plus
+   ``kk * (G_top + kk * f_L + ... + kk * f_1 + kk * b)`` compare-selects, instead of
    a ``top_k`` over ``M``.
-3. The outputs are recomputed from the selected indices with the plain formula,
+3. The outputs are recomputed from the selected slots with the plain formula,
    so values, weights and gradients (through the selected distances and weights;
-   the selection itself is discrete) match :func:`~heatpf_jax.observation.k_nearest`.
+   the selection itself is discrete and runs on stopped gradients) match
+   :func:`~heatpf_jax.observation.k_nearest`.
+
+Steps 1-2 run over chunks of ``chunk_size`` particles in a ``lax.map``: the
+selection's arrays then stay in cache and below the size at which XLA:CPU splits
+an operation over threads (the hand-off costs more than these small operations).
 
 Why it is exact
 ---------------
-Order the slots by ``(d, slot)`` where ``d`` is the squared distance for valid slots and
-``+inf`` (clamped to the largest finite float) for invalid or padding slots; let ``d*`` be
-the ``kk``-th smallest ``d``, ``A`` the slots with ``d < d*`` (fewer than ``kk``) and ``E``
-those with ``d = d*``. Claim: every candidate set contains all of ``A`` and at least
-``kk - |A|`` slots of ``E``. It holds for the whole buffer. Suppose it holds for a candidate
-set and we keep the ``kk`` groups with the smallest ``(min, index)``; let ``m`` be the
-``kk``-th kept minimum. A group holding a slot of ``A`` has minimum ``< d*``; if it were
-not kept, ``kk`` kept groups would have minima ``< d*``, each attained by a distinct slot,
-so ``kk`` slots would have ``d < d*``: impossible. If ``m > d*`` every group with minimum
-``<= d*`` is kept, so all of ``A`` and ``E`` stays. If ``m <= d*`` the ``kk`` kept groups
-each hold a slot with ``d <= d*``, so at least ``kk`` slots of ``A`` and ``E`` stay. With
-fewer than ``kk`` groups everything stays. At the leaves the ``kk`` smallest ``(d, slot)``
-of the candidates are therefore ``A`` plus ``kk - |A|`` slots of ``E``: a set of ``kk``
-nearest slots, i.e. the same neighbour set as the plain ``top_k`` up to ties at ``d*``
-(in particular, with fewer than ``kk`` valid measurements all valid ones are selected,
-and invalid slots are never selected: ``selected`` is ``valid[slot] & (rank < k)``). No
-step depends on the layout, so scattered valid slots stay exact; they only make block
-minima less selective, which does not change the work (it is static).
+Give invalid and padding slots the value ``+inf`` (clamped to the largest finite
+float), order candidates by ``(value, position)``, and let ``d*`` be the ``kk``-th
+smallest squared distance over the whole buffer, ``A`` the slots below ``d*`` (fewer
+than ``kk``) and ``E`` those equal to ``d*``. Claim: every candidate set contains all of
+``A`` and at least ``kk - |A|`` slots of ``E``. It holds for the whole buffer. Suppose it
+holds for a candidate set and we keep the ``kk`` groups that come first by
+``(minimum, position)``; let ``m`` be the largest kept minimum. A group holding a slot of
+``A`` has minimum ``< d*``; if it were not kept, each of the ``kk`` kept groups would have
+a minimum ``< d*``, attained by ``kk`` distinct slots: impossible. If ``m > d*`` every group
+with minimum ``<= d*`` is kept, so all of ``A`` and ``E`` stays. If ``m <= d*`` the kept
+groups hold ``kk`` distinct slots with values ``<= d*``, so at least ``kk - |A|`` slots of
+``E`` stay besides ``A``. With at most ``kk`` groups everything stays. At the leaves the
+``kk`` first candidates are therefore ``A`` plus ``kk - |A|`` slots of ``E``: ``kk`` nearest
+slots, i.e. the plain ``top_k``'s neighbour set up to the choice among ties at ``d*``
+(``top_k`` prefers lower slots, this may not). With fewer than ``kk`` valid measurements
+``d*`` is the invalid value, so all valid ones are selected; invalid slots are never
+selected (``selected`` is ``valid[slot] & (rank < k)``). No step depends on the layout:
+scattered valid slots stay exact, they only make block minima less selective, which
+does not change the (static) work.
 
 Everything has static shapes and no data-dependent control flow, so the function
 works under ``jit``, ``vmap`` (over ``k``, particles or buffers), ``scan`` and ``grad``.
@@ -80,11 +87,11 @@ __all__ = [
     "plan_blocks",
 ]
 
-DEFAULT_BLOCK_SIZE = 8  # measurements per leaf block: best of 4, 8, 16 on XLA:CPU at M = 1024..8192
-DEFAULT_CHUNK_SIZE = 256  # particles per selection chunk (see k_nearest_blocked)
+DEFAULT_BLOCK_SIZE = 4  # measurements per leaf block: best of 4, 8, 16 on XLA:CPU at M = 1024..8192
+DEFAULT_CHUNK_SIZE = 512  # particles per selection chunk (see k_nearest_blocked)
 
 # Plan cost model (see :func:`plan_blocks`), in units of one candidate taking part in the selection rounds.
-_LEVEL_COST_PER_K = 4.0  # fixed cost of one extra level (its kk rounds of kernels), per unit of kk
+_LEVEL_COST_PER_K = 2.0  # fixed cost of one extra level (its kk rounds of kernels), per unit of kk
 _SLOT_COST_PER_K = 0.25  # one (padded) slot in the block-minimum pass, relative to kk candidates
 _FANOUT_CHOICES = (2, 4, 8, 16)
 _MAX_UPPER_LEVELS = 3
@@ -115,7 +122,7 @@ def _plan_cost(num_measurements: int, kk: int, block_size: int, fanouts: tuple[i
 
     Calibrated on XLA:CPU (N = 500..2000, M = 1024..8192, k = 10): a selection level of ``R``
     candidates costs about ``0.42 ns * kk * R`` per particle, a distance ``0.11 ns``, and every
-    extra level a fixed overhead of about ``40`` candidates at ``kk = 10``.
+    extra level a fixed overhead of about ``20`` candidates at ``kk = 10``.
     """
     group = block_size * int(np.prod(fanouts, dtype=np.int64))
     num_top = _ceil_div(num_measurements, group)
@@ -141,8 +148,8 @@ def plan_blocks(
         block_size: measurements per leaf block.
         fanouts: children per group at each level above the leaves, bottom-up; by
             default the sequence of up to three values in ``(2, 4, 8, 16)`` (or none)
-            with the smallest estimated cost (about ``(4,)`` for M = 1024, ``(8,)`` for
-            M = 4096 and ``(4, 4)`` for M = 8192 at k_max = 10).
+            with the smallest estimated cost (``(4,)`` for M = 1024, ``(4, 4)`` for M = 4096
+            and ``(4, 4, 4)`` for M = 8192 at k_max = 10 and the default block size).
 
     Returns:
         The :class:`BlockPlan`.
@@ -244,8 +251,9 @@ def _select_slots(
         planes.append(dx * dx + dy * dy)
     minima = [_fold_min(planes)]  # [leaves, N]
     for f in plan.fanouts:
-        children = minima[-1].reshape(-1, f, n)
-        minima.append(_fold_min([children[:, c, :] for c in range(f)]))
+        # A reduce, not a fold: XLA:CPU then materializes each level once instead of re-deriving
+        # it inside the consumers of every selection round.
+        minima.append(jnp.min(minima[-1].reshape(-1, f, n), axis=1))
 
     top = jnp.minimum(minima[-1], big)
     if top.shape[0] > kk:

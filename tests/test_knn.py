@@ -146,7 +146,7 @@ def test_plan_blocks_covers_the_buffer():
                 group = plan.block_size * int(np.prod(plan.fanouts, dtype=np.int64))
                 assert plan.padded_size == plan.num_top * group >= m
                 assert plan.padded_size - m < group
-    assert plan_blocks(4096, 10).fanouts == (8,)
+    assert plan_blocks(4096, 10) == BlockPlan(4, (4, 4), 64, 4096)
     assert plan_blocks(300, 10, 4, fanouts=(2, 3)) == BlockPlan(4, (2, 3), 13, 312)
     with pytest.raises(ValueError, match="chunk_size"):
         k_nearest_blocked(jnp.zeros((3, 2)), hp.empty_measurements(10), 2, chunk_size=0)
@@ -296,3 +296,20 @@ def test_grad_matches_plain_formulation():
         lambda w: jnp.sum(hp.particle_weights(parts, meas._replace(weight=w), jnp.int32(3), k_max=K_MAX))
     )(meas.weight)
     np.testing.assert_allclose(np.asarray(gw), np.asarray(gw_plain), rtol=1e-5, atol=1e-7)
+
+
+def test_filter_gives_the_same_run_with_blocked_and_dense_search(small_sequence, small_config):
+    key = jax.random.key(9)
+    params = hp.FilterParams(k=4)
+    dense = hp.run(key, small_sequence, params, small_config._replace(knn="dense"))
+    blocked = hp.run(key, small_sequence, params, small_config._replace(knn="blocked"))
+    np.testing.assert_allclose(np.asarray(blocked.info.mean), np.asarray(dense.info.mean), rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(np.asarray(blocked.final_state.particles), np.asarray(dense.final_state.particles))
+
+
+def test_unknown_search_method_is_refused():
+    meas = hp.empty_measurements(8)
+    with pytest.raises(ValueError, match="method"):
+        hp.particle_weights(jnp.zeros((2, 2), jnp.float32), meas, 1, method="kdtree")
+    with pytest.raises(ValueError, match="knn"):
+        hp.validate_config(hp.FilterConfig(knn="kdtree"))
