@@ -209,6 +209,7 @@ def test_max_distance_invalidates_far_points():
 
 def test_project_points_matches_opencv():
     rng = np.random.default_rng(22)
+    worst_px = 0.0
     for _ in range(5):
         pose = random_pose(rng)
         rot, t = pose[:3, :3], pose[:3, 3]
@@ -219,8 +220,10 @@ def test_project_points_matches_opencv():
         tvec = -rot.T @ t
         uv_cv, _ = cv2.projectPoints(points, rvec, tvec, K_CV, None)
         uv, depth = project_points_np(points, pose)
+        worst_px = max(worst_px, float(np.abs(uv - uv_cv[:, 0, :]).max()))
         np.testing.assert_allclose(uv, uv_cv[:, 0, :], atol=1e-3)
         np.testing.assert_allclose(depth, p_cam[:, 2], rtol=1e-5, atol=1e-5)
+    print(f"\nproject_points vs cv2.projectPoints: max difference {worst_px:.2e} px")
     # A point behind the camera has negative depth.
     pose = hp.camera_pose(height=0.5, pitch=0.3)
     behind = (pose[:3, :3] @ np.array([0.1, 0.2, -1.0]) + pose[:3, 3])[None, :]

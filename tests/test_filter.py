@@ -129,9 +129,12 @@ def test_linear_gaussian_matches_kalman_posterior(kalman_toy):
         dev = np.abs(avg - kf_mean)[late]
         # Monte-Carlo error plus a small allowance for the O(1/N) particle-filter bias.
         worst = f"{name}: max deviation {dev.max():.4f} m, {(dev / se[late]).max():.2f} SE"
+        print(f"\nKalman toy, {worst}")
         assert np.all(dev <= 5 * se[late] + 0.02), worst
     cov = np.asarray(info.cov, np.float64).mean(0)[late]
     var = kf_var[late]
+    ratios = np.concatenate([cov[:, 0, 0] / var, cov[:, 1, 1] / var])
+    print(f"Kalman toy, PF / Kalman variance ratio: {ratios.min():.3f} to {ratios.max():.3f}")
     np.testing.assert_allclose(cov[:, 0, 0] / var, 1.0, atol=0.2)
     np.testing.assert_allclose(cov[:, 1, 1] / var, 1.0, atol=0.2)
     assert np.all(np.abs(cov[:, 0, 1]) < 0.2 * var)
@@ -172,6 +175,7 @@ def test_gradient_matches_finite_difference(kalman_toy):
     assert losses[0] == pytest.approx(float(value), rel=1e-5)  # same key: same random numbers
     for i, h in enumerate(steps):
         fd = (losses[1 + 2 * i] - losses[2 + 2 * i]) / (2 * h)
+        print(f"\ngradient {float(grad):.4f} vs central difference (h={h}) {fd:.4f}: {fd / float(grad) - 1:+.2%}")
         assert fd == pytest.approx(float(grad), rel=0.1), f"h={h}: finite difference {fd:.4f} vs grad {float(grad):.4f}"
     assert not np.any(np.asarray(res.info.resampled))
 
