@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from heatpf_jax.knn import k_nearest_blocked
+from heatpf_jax.knn import _static_k_max, k_nearest_blocked
 from heatpf_jax.measurements import Measurements
 
 __all__ = [
@@ -33,17 +33,6 @@ __all__ = [
 DEFAULT_MIN_DISTANCE = 0.01  # metres: about the ground spacing of heat-map pixels at 1-2 m
 KNN_METHODS = ("dense", "blocked", "auto")
 AUTO_BLOCKED_MIN_SIZE = 256  # "auto": the blocked kernel from this buffer size on (measured crossover)
-
-
-def _static_k_max(k, k_max: int | None, size: int) -> int:
-    if k_max is None:
-        try:
-            k_max = int(k)
-        except TypeError as err:  # includes jax.errors.ConcretizationTypeError
-            raise ValueError("k: a traced k needs a static k_max") from err
-    if k_max < 1:
-        raise ValueError(f"k_max: must be >= 1, got {k_max}")
-    return min(int(k_max), size)
 
 
 def k_nearest(
