@@ -38,6 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy
+from _timing import first_call, positive_int, stats_ms  # noqa: E402  (sibling module)
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
@@ -64,11 +65,6 @@ def parse_sizes(text: str) -> list[tuple[int, int]]:
     return sizes
 
 
-def positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
 
 
 def make_heatmap(seed: int = 0) -> np.ndarray:
@@ -154,15 +150,8 @@ def time_calls(call: Callable[[int], object], repeats: int) -> np.ndarray:
     return times
 
 
-def first_call(fn: Callable[[], object]) -> float:
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    return time.perf_counter() - t0
 
 
-def stats_ms(times: np.ndarray) -> tuple[float, float]:
-    q1, med, q3 = np.percentile(times, [25, 50, 75])
-    return 1e3 * med, 1e3 * (q3 - q1)
 
 
 def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) -> dict:

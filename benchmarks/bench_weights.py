@@ -58,6 +58,7 @@ import jax.numpy as jnp
 import jaxlib
 import numpy as np
 import scipy
+from _timing import first_call, positive_int, stats_ms  # noqa: E402  (sibling module)
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
@@ -116,11 +117,6 @@ def parse_methods(text: str) -> list[str]:
     return [m for m in METHODS if m in names]
 
 
-def positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
 
 
 # --------------------------------------------------------------------------- inputs
@@ -236,15 +232,8 @@ def time_blocks(calls: list[Callable[[], object]], repeats: int, blocks: int = B
     return [np.asarray(t) for t in times]
 
 
-def first_call(fn: Callable[[], object]) -> float:
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    return time.perf_counter() - t0
 
 
-def stats_ms(times: np.ndarray) -> tuple[float, float]:
-    q1, med, q3 = np.percentile(times, [25, 50, 75])
-    return 1e3 * med, 1e3 * (q3 - q1)
 
 
 def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
