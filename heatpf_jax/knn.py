@@ -31,6 +31,14 @@ not depend on it.
    ``lax.top_k`` on such short rows. Work per particle: ``M`` distances plus
    ``kk * (G_top + kk * f_L + ... + kk * f_1 + kk * b)`` compare-selects, instead of
    a ``top_k`` over ``M``.
+
+   With a *traced* ``k`` (the filter's case: ``FilterParams.k`` is an array, bounded
+   by the static ``k_max``) every selection runs only ``min(k, kk)`` rounds, in a
+   ``lax.fori_loop``: the arrays keep their static ``kk``-sized shapes, and the
+   ``kk - k`` slots left unfilled hold a *null group* (an extra ``+inf`` row appended
+   to each level; its children are the null group of the level below, its slots
+   the padding slot). The default ``k = 3`` under ``k_max = 16`` thus pays for 3
+   rounds per level, not 16.
 3. The outputs are recomputed from the selected slots with the plain formula,
    so values, weights and gradients (through the selected distances and weights;
    the selection itself is discrete and runs on stopped gradients) match
@@ -61,6 +69,11 @@ slots, i.e. the plain ``top_k``'s neighbour set up to the choice among ties at `
 selected (``selected`` is ``valid[slot] & (rank < k)``). No step depends on the layout:
 scattered valid slots stay exact, they only make block minima less selective, which
 does not change the (static) work.
+With a traced ``k`` the same argument holds with ``kk`` replaced by ``min(k, kk)``: each
+level keeps the first ``k`` groups, null groups (``+inf``, above every clamped real value)
+are only ever picked once fewer than ``k`` real candidates remain, which never happens
+(every level offers at least ``k`` real candidates), and the leaves yield the ``k``
+nearest slots in increasing distance; ``selected`` masks the rest.
 
 Everything has static shapes and no data-dependent control flow, so the function
 works under ``jit``, ``vmap`` (over ``k``, particles or buffers), ``scan`` and ``grad``.
@@ -189,22 +202,49 @@ def _static_k_max(k, k_max: int | None, size: int) -> int:
     return min(int(k_max), size)
 
 
-def _smallest_rows(values: Float[Array, "r n"], count: int) -> Int[Array, "c n"]:
+def _smallest_rows(
+    values: Float[Array, "r n"], count: int, rounds: Int[ArrayLike, ""] | None = None
+) -> Int[Array, "c n"]:
     """Row indices of the ``count`` smallest entries of each column, in increasing ``(value, row)``.
 
     ``count`` rounds of: column minimum, first row holding it, mask that row with ``+inf``.
-    ``values`` must be finite (masked rows are ``+inf``) and have more than ``count - 1`` rows.
+    ``values`` must be below ``+inf`` on real rows (masked rows are ``+inf``) and have more
+    than ``count - 1`` rows.
+
+    With ``rounds`` (a traced integer, at most ``count``) only that many rounds run, in a
+    ``lax.fori_loop``; rows ``rounds..count-1`` of the result hold ``r`` (one past the last
+    row: the caller's null row).
     """
     rows = values.shape[0]
     row = lax.broadcasted_iota(jnp.int32, values.shape, 0)
-    picked = []
-    for t in range(count):
+
+    def one_round(values):
         low = jnp.min(values, axis=0)
-        first = jnp.min(jnp.where(values == low[None, :], row, rows), axis=0)
-        picked.append(first)
-        if t + 1 < count:
-            values = jnp.where(row == first[None, :], jnp.inf, values)
-    return jnp.stack(picked, axis=0)
+        return jnp.min(jnp.where(values == low[None, :], row, rows), axis=0)
+
+    if rounds is None:
+        picked = []
+        for t in range(count):
+            first = one_round(values)
+            picked.append(first)
+            if t + 1 < count:
+                values = jnp.where(row == first[None, :], jnp.inf, values)
+        return jnp.stack(picked, axis=0)
+
+    def body(t, carry):
+        values, out = carry
+        first = one_round(values)
+        out = lax.dynamic_update_slice(out, first[None, :], (t, jnp.zeros_like(t)))
+        return jnp.where(row == first[None, :], jnp.inf, values), out
+
+    out = jnp.full((count, values.shape[1]), rows, jnp.int32)
+    num = jnp.clip(jnp.asarray(rounds, jnp.int32), 0, count)
+    return lax.fori_loop(jnp.zeros_like(num), num, body, (values, out))[1]
+
+
+def _with_null_row(table: Array, fill) -> Array:
+    """``table`` with one more row (the null group) filled with ``fill``."""
+    return jnp.concatenate([table, jnp.full((1,) + table.shape[1:], fill, table.dtype)], axis=0)
 
 
 def _fold_min(planes: list[Float[Array, "g n"]]) -> Float[Array, "g n"]:
@@ -234,8 +274,13 @@ def _select_slots(
     y: Float[Array, " mp"],
     kk: int,
     plan: BlockPlan,
+    rounds: Int[Array, ""] | None = None,
 ) -> Int[Array, "kk n"]:
-    """Slots of the ``kk`` nearest points ``(x, y)`` (``+inf`` = invalid) to each particle, nearest first."""
+    """Slots of the ``kk`` nearest points ``(x, y)`` (``+inf`` = invalid) to each particle, nearest first.
+
+    With ``rounds`` (traced ``k``) only the first ``min(k, kk)`` rows are neighbours; the
+    others hold the padding slot ``plan.padded_size``.
+    """
     n = px.shape[0]
     b = plan.block_size
     big = float(jnp.finfo(x.dtype).max)  # invalid slots: largest finite value; masked rows: +inf
@@ -243,6 +288,7 @@ def _select_slots(
     xb = x.reshape(num_leaves, b)
     yb = y.reshape(num_leaves, b)
     pxr, pyr = px[None, :], py[None, :]
+    dynamic = rounds is not None
 
     planes = []
     for j in range(b):
@@ -255,27 +301,48 @@ def _select_slots(
         # it inside the consumers of every selection round.
         minima.append(jnp.min(minima[-1].reshape(-1, f, n), axis=1))
 
+    # With a traced k, index G of a level (one past its last group) is its null group.
     top = jnp.minimum(minima[-1], big)
+    null = top.shape[0]
     if top.shape[0] > kk:
-        groups = _smallest_rows(top, kk)
+        groups = _smallest_rows(top, kk, rounds)
     else:
         groups = lax.broadcasted_iota(jnp.int32, top.shape, 0)
     for level in range(len(plan.fanouts) - 1, -1, -1):
         f = plan.fanouts[level]
         r = groups.shape[0]
         children = (groups[:, None, :] * f + jnp.arange(f, dtype=jnp.int32)[None, :, None]).reshape(r * f, n)
+        table = jnp.minimum(minima[level], big)
+        if dynamic:
+            children = jnp.where(jnp.repeat(groups == null, f, axis=0), table.shape[0], children)
+            table = _with_null_row(table, jnp.inf)
+            null = minima[level].shape[0]
         if r * f > kk:
-            values = jnp.minimum(jnp.take_along_axis(minima[level], children, axis=0), big)
-            groups = jnp.take_along_axis(children, _smallest_rows(values, kk), axis=0)
+            values = jnp.take_along_axis(table, children, axis=0)
+            picked = _smallest_rows(values, kk, rounds)
+            if dynamic:
+                children = _with_null_row(children, null)
+            groups = jnp.take_along_axis(children, picked, axis=0)
         else:
             groups = children
 
     r = groups.shape[0]
+    if dynamic:
+        xb, yb = _with_null_row(xb, jnp.inf), _with_null_row(yb, jnp.inf)
     dx = _gather_blocks(xb, groups) - pxr[None]
     dy = _gather_blocks(yb, groups) - pyr[None]
-    sq = jnp.minimum(dx * dx + dy * dy, big).reshape(r * b, n)
-    slots = (groups[:, None, :] * b + jnp.arange(b, dtype=jnp.int32)[None, :, None]).reshape(r * b, n)
-    return jnp.take_along_axis(slots, _smallest_rows(sq, kk), axis=0)
+    sq = jnp.minimum(dx * dx + dy * dy, big)
+    slots = groups[:, None, :] * b + jnp.arange(b, dtype=jnp.int32)[None, :, None]
+    if dynamic:
+        is_null = jnp.broadcast_to((groups == null)[:, None, :], sq.shape)
+        sq = jnp.where(is_null, jnp.inf, sq)
+        slots = jnp.where(is_null, plan.padded_size, slots)
+    sq = sq.reshape(r * b, n)
+    slots = slots.reshape(r * b, n)
+    picked = _smallest_rows(sq, kk, rounds)
+    if dynamic:
+        slots = _with_null_row(slots, plan.padded_size)
+    return jnp.take_along_axis(slots, picked, axis=0)
 
 
 def _select_slots_chunked(
@@ -286,16 +353,17 @@ def _select_slots_chunked(
     kk: int,
     plan: BlockPlan,
     chunk_size: int,
+    rounds: Int[Array, ""] | None = None,
 ) -> Int[Array, "n kk"]:
     """:func:`_select_slots` over chunks of ``chunk_size`` particles (``lax.map``), as ``[N, kk]``."""
     n = px.shape[0]
     if n <= chunk_size:
-        return _select_slots(px, py, x, y, kk, plan).T
+        return _select_slots(px, py, x, y, kk, plan, rounds).T
     num = _ceil_div(n, chunk_size)
     pad = num * chunk_size - n
     pxc = jnp.pad(px, (0, pad)).reshape(num, chunk_size)
     pyc = jnp.pad(py, (0, pad)).reshape(num, chunk_size)
-    slots = lax.map(lambda c: _select_slots(c[0], c[1], x, y, kk, plan), (pxc, pyc))  # [num, kk, chunk]
+    slots = lax.map(lambda c: _select_slots(c[0], c[1], x, y, kk, plan, rounds), (pxc, pyc))  # [num, kk, chunk]
     return jnp.transpose(slots, (0, 2, 1)).reshape(num * chunk_size, kk)[:n]
 
 
@@ -348,7 +416,9 @@ def k_nearest_blocked(
     p_sel = lax.stop_gradient(particles).astype(dtype)
     if chunk_size < 1:
         raise ValueError(f"chunk_size: must be >= 1, got {chunk_size}")
-    slots = _select_slots_chunked(p_sel[:, 0], p_sel[:, 1], x, y, kk, plan, int(chunk_size))  # [N, kk]
+    # A concrete k runs all kk rounds unrolled; a traced one only min(k, kk) rounds per level.
+    rounds = None if isinstance(k, (int, np.integer)) else jnp.asarray(k, jnp.int32)
+    slots = _select_slots_chunked(p_sel[:, 0], p_sel[:, 1], x, y, kk, plan, int(chunk_size), rounds)  # [N, kk]
 
     # Outputs: the plain formulation's expressions at the selected slots (differentiable).
     in_buffer = slots < size  # padding slots are never valid

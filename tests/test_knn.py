@@ -221,6 +221,23 @@ def test_buffer_smaller_than_k_and_concrete_k():
             np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+def test_concrete_k_unrolled_path_on_hierarchies():
+    """A concrete k runs every round unrolled (no null groups): same references as the traced path."""
+    rng = np.random.default_rng(14)
+    meas = random_buffer(rng)
+    parts = particles_around(rng, meas, spread=1.5, far=4)
+    deep = jax.jit(partial(k_nearest_blocked, block_size=3, fanouts=(2, 2), chunk_size=48), static_argnums=2)
+    for k in (1, 3, K_MAX):
+        for fn in (_blocked_concrete, deep):
+            got = tuple(np.asarray(a) for a in fn(parts, meas, k))
+            traced = tuple(np.asarray(a)[:, :k] for a in _blocked(parts, meas, jnp.int32(k)))
+            for a, b in zip(got, traced, strict=True):
+                np.testing.assert_array_equal(a, b)
+            rsq, rw, rsel = ref_knn(parts, meas.xy, meas.weight, np.asarray(meas.valid), k, k)
+            np.testing.assert_array_equal(got[2], rsel)
+            np.testing.assert_allclose(got[0], rsq, rtol=1e-5, atol=1e-12)
+
+
 def test_distance_ties_give_a_valid_neighbour_set():
     """A lattice with particles on lattice points and cell centres: many exact ties; equal weights."""
     gx, gy = np.meshgrid(np.arange(20.0), np.arange(15.0))
