@@ -5,8 +5,8 @@ using Particle Filters in Cartesian Space".
 """
 
 from heatpf_jax.camera import camera_pose, pixel_ray, project_pixel, project_points
-from heatpf_jax.estimate import Estimate, top_fraction_estimate, weighted_mean_cov
-from heatpf_jax.explorers import explorer_mask, spawn_gaussian, spawn_uniform
+from heatpf_jax.estimate import Estimate, sorted_top_fraction_estimate, top_fraction_estimate, weighted_mean_cov
+from heatpf_jax.explorers import explorer_count, explorer_mask, explorer_slots, spawn_gaussian, spawn_uniform
 from heatpf_jax.filter import (
     FilterConfig,
     FilterParams,
@@ -31,7 +31,7 @@ from heatpf_jax.measurements import (
     project_heatmap,
     update_buffer,
 )
-from heatpf_jax.motion import apply_odometry, diffuse, move_particles
+from heatpf_jax.motion import apply_odometry, diffuse, move_and_diffuse, move_particles
 from heatpf_jax.observation import gaussian_particle_weights, k_nearest, particle_weights
 from heatpf_jax.resampling import (
     RESAMPLERS,
@@ -64,12 +64,15 @@ __all__ = [
     "downscale_heatmap",
     "effective_sample_size",
     "empty_measurements",
+    "explorer_count",
     "explorer_mask",
+    "explorer_slots",
     "gaussian_particle_weights",
     "init",
     "k_nearest",
     "k_nearest_blocked",
     "load_sequence",
+    "move_and_diffuse",
     "move_measurements",
     "move_particles",
     "multinomial",
@@ -87,6 +90,7 @@ __all__ = [
     "step",
     "stratified",
     "systematic",
+    "sorted_top_fraction_estimate",
     "top_fraction_estimate",
     "update_buffer",
     "validate_config",

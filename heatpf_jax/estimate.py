@@ -14,7 +14,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-__all__ = ["Estimate", "top_fraction_estimate", "weighted_mean_cov"]
+__all__ = ["Estimate", "sorted_top_fraction_estimate", "top_fraction_estimate", "weighted_mean_cov"]
 
 
 class Estimate(NamedTuple):
@@ -44,10 +44,37 @@ def weighted_mean_cov(
     return mean, cov
 
 
+def _top_count(top_fraction, n: int):
+    """``ceil(top_fraction * n)`` clipped to ``[1, n]`` (tolerant of float32 products like 0.95 * 500)."""
+    return jnp.clip(jnp.ceil(top_fraction * n - 1e-4), 1, n).astype(jnp.int32)
+
+
+def sorted_top_fraction_estimate(
+    particles: Float[ArrayLike, "n 2"], weights: Float[ArrayLike, " n"], top_fraction: Float[ArrayLike, ""]
+) -> Estimate:
+    """:func:`top_fraction_estimate` for particles already sorted by non-increasing weight.
+
+    The kept particles are then the first ``ceil(top_fraction * N)``: no sort, no ranks.
+    The filter step sorts once and shares the order with resampling and the explorers.
+    """
+    particles = jnp.asarray(particles)
+    weights = jnp.asarray(weights)
+    n = weights.shape[0]
+    head = jnp.arange(n, dtype=jnp.int32) < _top_count(top_fraction, n)
+    kept = jnp.where(head, weights, 0.0)
+    # If every kept weight is zero the best particles are tied at zero: use them equally.
+    kept = jnp.where(jnp.sum(kept) > 0, kept, head.astype(weights.dtype))
+    mean, cov = weighted_mean_cov(particles, kept)
+    weighted_mean, _ = weighted_mean_cov(particles, weights)
+    return Estimate(mean=mean, cov=cov, weighted_mean=weighted_mean)
+
+
 def top_fraction_estimate(
     particles: Float[ArrayLike, "n 2"], weights: Float[ArrayLike, " n"], top_fraction: Float[ArrayLike, ""]
 ) -> Estimate:
     """Mean and covariance of the ``ceil(top_fraction * N)`` highest-weight particles.
+
+    Ties in weight are broken by index (a stable sort).
 
     Args:
         particles: ``[N, 2]``.
@@ -59,13 +86,5 @@ def top_fraction_estimate(
     """
     particles = jnp.asarray(particles)
     weights = jnp.asarray(weights)
-    n = weights.shape[0]
-    count = jnp.clip(jnp.ceil(top_fraction * n - 1e-4), 1, n).astype(jnp.int32)
     order = jnp.argsort(-weights, stable=True)
-    rank = jnp.zeros((n,), jnp.int32).at[order].set(jnp.arange(n, dtype=jnp.int32))
-    kept = jnp.where(rank < count, weights, 0.0)
-    # If every kept weight is zero the best particles are tied at zero: use them equally.
-    kept = jnp.where(jnp.sum(kept) > 0, kept, (rank < count).astype(weights.dtype))
-    mean, cov = weighted_mean_cov(particles, kept)
-    weighted_mean, _ = weighted_mean_cov(particles, weights)
-    return Estimate(mean=mean, cov=cov, weighted_mean=weighted_mean)
+    return sorted_top_fraction_estimate(particles[order], weights[order], top_fraction)

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-__all__ = ["explorer_mask", "spawn_gaussian", "spawn_uniform"]
+__all__ = ["explorer_count", "explorer_mask", "explorer_slots", "spawn_gaussian", "spawn_uniform"]
 
 
 def spawn_uniform(key: PRNGKeyArray, num: int, box: tuple[float, float, float, float]) -> Float[Array, "num 2"]:
@@ -37,7 +37,23 @@ def explorer_mask(support: Float[ArrayLike, " n"], fraction: Float[ArrayLike, ""
     """
     support = jnp.asarray(support)
     n = support.shape[0]
-    count = jnp.round(fraction * n).astype(jnp.int32)
+    count = explorer_count(fraction, n)
     order = jnp.argsort(support, stable=True)
     rank = jnp.zeros((n,), jnp.int32).at[order].set(jnp.arange(n, dtype=jnp.int32))
     return rank < count
+
+
+def explorer_count(fraction: Float[ArrayLike, ""], num: int) -> Array:
+    """``round(fraction * num)`` as a (possibly traced) ``int32``: how many particles respawn."""
+    return jnp.round(fraction * num).astype(jnp.int32)
+
+
+def explorer_slots(num: int, fraction: Float[ArrayLike, ""]) -> Bool[Array, " num"]:
+    """Marks the last ``round(fraction * num)`` of ``num`` slots.
+
+    After resampling particles sorted by decreasing weight (every resampler returns
+    non-decreasing indices), the last slots hold the copies with the lowest support:
+    this is :func:`explorer_mask` of their support (ties broken by the sort) without a
+    second sort.
+    """
+    return jnp.arange(num, dtype=jnp.int32) >= num - explorer_count(fraction, num)

@@ -4,7 +4,8 @@ One filter step, in the order of the sequence-file contract:
 
 1. odometry moves the particles (with motion-scaled noise) and the buffered
    measurements (without) into the base frame of this step; every particle is
-   diffused by Gaussian noise (III-D);
+   diffused by Gaussian noise (III-D); both noises come from one draw
+   (:func:`~heatpf_jax.motion.move_and_diffuse`);
 2. a new heat map, if any, is projected (III-A) and replaces the buffer when it
    yields a measurement; otherwise the buffer ages (III-C, eq. 2);
 3. particles are weighted by eq. (1) (III-B) and the weights multiplied into
@@ -14,6 +15,12 @@ One filter step, in the order of the sequence-file contract:
 5. particles are resampled when the effective sample size falls below
    ``resample_threshold * N`` (the default 1.0 resamples every step, as SIR),
    then the ``explorer_fraction`` with the lowest support respawn as explorers (III-E).
+
+Steps 4 and 5 share one sort of the particles by decreasing weight: the kept
+``top_fraction`` are the first particles, and since resampling indices are
+non-decreasing the copies with the lowest support end up in the last slots,
+which become the explorers. A step that does not resample leaves every
+particle in its slot.
 
 ``FilterParams`` holds every tunable number as an array, so a batch of them (a
 leading axis on every field) can be swept with ``jax.vmap``; ``FilterConfig``
@@ -32,8 +39,8 @@ from jax import lax
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax.clusters import cluster_measurement
-from heatpf_jax.estimate import Estimate, top_fraction_estimate
-from heatpf_jax.explorers import explorer_mask, spawn_gaussian, spawn_uniform
+from heatpf_jax.estimate import Estimate, sorted_top_fraction_estimate
+from heatpf_jax.explorers import explorer_slots, spawn_gaussian, spawn_uniform
 from heatpf_jax.kalman import KalmanState, kalman_init, kalman_odometry, kalman_predict, kalman_update
 from heatpf_jax.measurements import (
     Measurements,
@@ -42,7 +49,7 @@ from heatpf_jax.measurements import (
     project_heatmap,
     update_buffer,
 )
-from heatpf_jax.motion import diffuse, move_particles
+from heatpf_jax.motion import move_and_diffuse
 from heatpf_jax.observation import KNN_METHODS, gaussian_particle_weights, particle_weights
 from heatpf_jax.resampling import RESAMPLERS, effective_sample_size
 from heatpf_jax.sequence import Sequence
@@ -402,11 +409,18 @@ def step(
         ``(new_state, info)``.
     """
     n = config.num_particles
-    k_odom, k_diff, k_res, k_exp = jax.random.split(key, 4)
+    k_move, k_res, k_exp = jax.random.split(key, 3)
 
-    # 1. Movement model (III-D), for particles and buffered measurements.
-    particles = move_particles(k_odom, state.particles, inputs.odometry, params.odom_trans_noise, params.odom_rot_noise)
-    particles = diffuse(k_diff, particles, params.diffusion_std)
+    # 1. Movement model (III-D), for particles and buffered measurements: odometry noise and
+    #    diffusion in one draw of 3 normals per particle (the same distribution as two draws).
+    particles = move_and_diffuse(
+        k_move,
+        state.particles,
+        inputs.odometry,
+        params.odom_trans_noise,
+        params.odom_rot_noise,
+        params.diffusion_std,
+    )
     buffer = move_measurements(state.buffer, inputs.odometry)
 
     # 2. New measurements (III-A) or aging (III-C, eq. 2).
@@ -423,19 +437,27 @@ def step(
     log_w = _normalise_log(state.log_weights + _log(likelihood))
     weights = jnp.exp(log_w)
 
-    # 4. Output (III-F).
-    est: Estimate = top_fraction_estimate(particles, weights, params.top_fraction)
+    # One sort by decreasing weight serves the output, resampling and the explorers.
+    order = jnp.argsort(-weights, stable=True)
+    sorted_particles, sorted_weights = particles[order], weights[order]
 
-    # 5. Resampling and explorers (III-E).
+    # 4. Output (III-F): the best top_fraction are the first ones.
+    est: Estimate = sorted_top_fraction_estimate(sorted_particles, sorted_weights, params.top_fraction)
+
+    # 5. Resampling and explorers (III-E). Resampling indices are non-decreasing, so after
+    #    resampling the sorted particles the last slots hold the copies with the lowest support:
+    #    they respawn as explorers. Without resampling the particles keep their slots (permuting
+    #    them would hand each one another particle's noise next step, so a loss would jump
+    #    whenever two weights swap ranks) and the explorers are the last-ranked ones.
     ess = effective_sample_size(weights)
     resampled = ess < params.resample_threshold * n
-    idx = RESAMPLERS[config.resampler](k_res, weights, n)
-    idx = jnp.where(resampled, idx, jnp.arange(n, dtype=jnp.int32))
-    particles = particles[idx]
-    support = weights[idx]
-    log_w = jnp.where(resampled, jnp.full_like(log_w, -math.log(n)), log_w[idx])
-
-    explorers = explorer_mask(support, params.explorer_fraction)
+    idx = RESAMPLERS[config.resampler](k_res, sorted_weights, n)
+    particles = jnp.where(resampled, sorted_particles[idx], particles)
+    log_w = jnp.where(resampled, jnp.full_like(log_w, -math.log(n)), log_w)
+    slots = jnp.arange(n, dtype=jnp.int32)
+    rank = jnp.zeros((n,), jnp.int32).at[order].set(slots, unique_indices=True)
+    last = explorer_slots(n, params.explorer_fraction)
+    explorers = jnp.where(resampled, last, last[rank])
     if config.spawn == "gaussian":
         spawned = spawn_gaussian(k_exp, n, est.mean, params.explorer_std)
     else:

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
-__all__ = ["apply_odometry", "diffuse", "move_particles"]
+__all__ = ["apply_odometry", "diffuse", "move_and_diffuse", "move_particles"]
 
 
 def apply_odometry(points: Float[ArrayLike, "n 2"], odometry: Float[ArrayLike, "... 3"]) -> Float[Array, "n 2"]:
@@ -72,3 +72,45 @@ def diffuse(key: PRNGKeyArray, particles: Float[ArrayLike, "n 2"], std: Float[Ar
     """Adds isotropic Gaussian noise ``std * N(0, I)`` to every particle (III-D)."""
     particles = jnp.asarray(particles)
     return particles + std * jax.random.normal(key, particles.shape, particles.dtype)
+
+
+def move_and_diffuse(
+    key: PRNGKeyArray,
+    particles: Float[ArrayLike, "n 2"],
+    odometry: Float[ArrayLike, "3"],
+    trans_noise: Float[ArrayLike, ""],
+    rot_noise: Float[ArrayLike, ""],
+    diffusion_std: Float[ArrayLike, ""],
+) -> Float[Array, "n 2"]:
+    """:func:`move_particles` followed by :func:`diffuse`, drawn with 3 normals per particle instead of 5.
+
+    Both translational noises are isotropic Gaussians independent of the noisy angle
+    ``theta' = dtheta + rot_noise * |dtheta| * n3``: rotating the odometry noise by
+    ``R(theta')^T`` leaves it ``N(0, (trans_noise |d|)^2 I)``, so
+
+        p' = R(theta')^T (p - (dx, dy)) + sqrt((trans_noise |d|)^2 + diffusion_std^2) * (n1, n2)
+
+    has exactly the distribution of the two steps in sequence (III-D). The filter step
+    uses this form: the noise draw is a large part of a step's cost on a CPU.
+
+    Args:
+        key: PRNG key.
+        particles: ``[n, 2]``.
+        odometry: ``[3]`` ``(dx, dy, dtheta)``.
+        trans_noise: translational noise, a fraction of the distance travelled.
+        rot_noise: rotational noise, a fraction of the angle turned.
+        diffusion_std: Gaussian diffusion, metres.
+
+    Returns:
+        ``[n, 2]`` moved and diffused particles.
+    """
+    particles = jnp.asarray(particles)
+    odometry = jnp.asarray(odometry, particles.dtype)
+    sq = odometry[0] ** 2 + odometry[1] ** 2
+    var = trans_noise * trans_noise * sq + diffusion_std * diffusion_std
+    std = jnp.where(var > 0.0, jnp.sqrt(jnp.where(var > 0.0, var, 1.0)), 0.0)
+    noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
+    theta = odometry[2] + rot_noise * jnp.abs(odometry[2]) * noise[:, 2]
+    shift = jnp.broadcast_to(odometry[None, :2], (particles.shape[0], 2))
+    moved = apply_odometry(particles, jnp.concatenate([shift, theta[:, None]], axis=1))
+    return moved + std * noise[:, :2]

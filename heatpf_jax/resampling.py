@@ -3,6 +3,11 @@
 All are built on a normalised cumulative sum and ``searchsorted``; the cumulative
 sum is divided by its last element and the indices clipped, so float32 rounding
 (a total that stays just below 1) never yields an out-of-range index.
+
+Every resampler returns **non-decreasing** indices: the copies of one particle are
+contiguous. The filter step relies on it: it resamples particles sorted by
+decreasing weight, so the last slots hold the copies with the lowest support and
+become the explorers (III-E) without a second sort.
 """
 
 from __future__ import annotations
@@ -33,7 +38,9 @@ def effective_sample_size(weights: Float[ArrayLike, " n"]) -> Float[Array, ""]:
 
 def _search(weights: Float[Array, " n"], positions: Float[Array, " m"]) -> Int[Array, " m"]:
     n = weights.shape[0]
-    cdf = jnp.cumsum(weights)
+    # XLA's blocked cumsum is not exactly monotone; the running maximum makes it so, which
+    # keeps the indices of sorted positions non-decreasing.
+    cdf = lax.cummax(jnp.cumsum(weights), axis=0)
     cdf = cdf / cdf[-1]
     idx = jnp.clip(jnp.searchsorted(cdf, positions, side="right"), 0, n - 1)
     # float32 rounding (a position that rounds to 1, or XLA's blocked cumsum not being exactly
@@ -63,11 +70,21 @@ def stratified(key: PRNGKeyArray, weights: Float[ArrayLike, " n"], num_samples: 
     return _search(weights, positions)
 
 
+def _sorted_uniforms(key: PRNGKeyArray, num: int, dtype) -> Float[Array, " num"]:
+    """The order statistics of ``num`` iid uniforms on [0, 1), drawn in O(num) without a sort.
+
+    Normalised partial sums of ``num + 1`` standard exponentials ``E_i = -log(1 - U_i)``
+    are distributed as sorted uniforms (the exponential-spacings representation).
+    """
+    u = jax.random.uniform(key, (num + 1,), dtype)
+    sums = lax.cummax(jnp.cumsum(-jnp.log1p(-u)), axis=0)
+    return jnp.minimum(sums[:num] / sums[num], jnp.asarray(1.0, dtype))
+
+
 def multinomial(key: PRNGKeyArray, weights: Float[ArrayLike, " n"], num_samples: int) -> Int[Array, " m"]:
-    """Independent draws from the categorical distribution of ``weights``."""
+    """Independent draws from the categorical distribution of ``weights`` (returned sorted)."""
     weights = jnp.asarray(weights)
-    positions = jax.random.uniform(key, (num_samples,), weights.dtype)
-    return _search(weights, positions)
+    return _search(weights, _sorted_uniforms(key, num_samples, weights.dtype))
 
 
 def residual(key: PRNGKeyArray, weights: Float[ArrayLike, " n"], num_samples: int) -> Int[Array, " m"]:
@@ -77,12 +94,15 @@ def residual(key: PRNGKeyArray, weights: Float[ArrayLike, " n"], num_samples: in
     scaled = num_samples * weights
     counts = jnp.floor(scaled).astype(jnp.int32)
     n_det = jnp.sum(counts)
-    det = jnp.repeat(jnp.arange(weights.shape[0], dtype=jnp.int32), counts, total_repeat_length=num_samples)
     rest = scaled - counts.astype(scaled.dtype)
     # If rounding left no residual mass, fall back to the weights themselves.
     rest = jnp.where(jnp.sum(rest) > 0, rest, weights)
-    extra = multinomial(key, rest, num_samples)
-    return jnp.where(jnp.arange(num_samples) < n_det, det, extra)
+    # m iid draws on the residuals (unsorted, so any m - n_det of them are iid); their counts
+    # join the deterministic copies and one repeat returns everything in sorted order.
+    extra = _search(rest, jax.random.uniform(key, (num_samples,), weights.dtype))
+    slots = jnp.arange(num_samples, dtype=jnp.int32)
+    counts = counts.at[extra].add((slots >= n_det).astype(jnp.int32))
+    return jnp.repeat(jnp.arange(weights.shape[0], dtype=jnp.int32), counts, total_repeat_length=num_samples)
 
 
 RESAMPLERS: dict[str, Callable[[PRNGKeyArray, Array, int], Array]] = {

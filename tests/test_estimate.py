@@ -129,3 +129,19 @@ def test_tiny_fraction_keeps_the_single_best(rng):
     best = int(np.argmax(weights))
     np.testing.assert_allclose(est.mean, particles[best], rtol=1e-6)
     np.testing.assert_allclose(est.cov, np.zeros((2, 2)), atol=1e-12)
+
+
+def test_sorted_top_fraction_estimate_matches_reference_on_sorted_input(rng):
+    """Given particles sorted by decreasing weight it needs no sort and equals the NumPy reference."""
+    sorted_est = jax.jit(hp.sorted_top_fraction_estimate)
+    for n in (50, 333):
+        particles = rng.normal(size=(n, 2)).astype(np.float32)
+        weights = rng.gamma(0.5, size=n).astype(np.float32)
+        weights[:5] = weights[5]  # ties
+        order = np.argsort(-weights, kind="stable")
+        for fraction in (0.05, 0.5, 0.95, 1.0):
+            mean, cov, wmean, _ = _reference(particles, weights, fraction)
+            got = sorted_est(jnp.asarray(particles[order]), jnp.asarray(weights[order]), jnp.float32(fraction))
+            np.testing.assert_allclose(got.mean, mean, rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(got.cov, cov, rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(got.weighted_mean, wmean, rtol=1e-4, atol=1e-6)

@@ -87,3 +87,26 @@ def test_spawn_gaussian_moments():
     np.testing.assert_allclose(
         jitted(jax.random.key(2), n, jnp.asarray(mean, jnp.float32), jnp.float32(std)), pts, rtol=1e-6, atol=1e-6
     )
+
+
+@pytest.mark.parametrize("name", sorted(hp.RESAMPLERS))
+def test_explorer_slots_after_sorted_resampling_are_the_lowest_support(name, rng):
+    """The filter's shortcut: resample particles sorted by decreasing weight, respawn the last slots.
+
+    The supports of those slots are exactly the ``round(f n)`` lowest supports (the multiset
+    ``explorer_mask`` selects), for every resampler, since their indices are non-decreasing.
+    """
+    n = 97
+    draw = jax.jit(lambda key, w: hp.RESAMPLERS[name](key, w, n))
+    for trial in range(20):
+        weights = rng.gamma(0.3, size=n).astype(np.float32)
+        weights[rng.random(n) < 0.2] = 0.0
+        weights[:3] = weights[3]  # ties in weight
+        order = np.argsort(-weights, kind="stable")
+        sorted_w = weights[order]
+        support = sorted_w[np.asarray(draw(jax.random.key(trial), jnp.asarray(sorted_w)))]
+        for fraction in (0.0, 0.05, 0.3, 1.0):
+            slots = np.asarray(hp.explorer_slots(n, jnp.float32(fraction)))
+            assert slots.sum() == round(fraction * n) and np.all(slots[n - slots.sum():])
+            lowest = np.asarray(hp.explorer_mask(jnp.asarray(support), fraction))
+            np.testing.assert_array_equal(np.sort(support[slots]), np.sort(support[lowest]))

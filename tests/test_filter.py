@@ -164,8 +164,10 @@ def test_gradient_matches_finite_difference(kalman_toy):
 
     value, grad = jax.value_and_grad(loss)(jnp.float32(KF_Q))
     assert np.isfinite(float(grad)) and abs(float(grad)) > 1e-2
-    # Central differences with common random numbers, evaluated in the batched compilation.
-    steps = (0.01, 0.005)
+    # Central differences with common random numbers, evaluated in the batched compilation. The
+    # loss is curved at this key (h = 0.01 is 15 % off, 0.005 4 %, 0.002 0.6 %: the O(h^2) error of a
+    # central difference), so the steps are small.
+    steps = (0.004, 0.002)
     ds = [KF_Q] + [KF_Q + s * h for h in steps for s in (1, -1)]
     ds += [KF_Q] * (KF_RUNS - len(ds))
     res = _batched_run(
@@ -176,7 +178,7 @@ def test_gradient_matches_finite_difference(kalman_toy):
     for i, h in enumerate(steps):
         fd = (losses[1 + 2 * i] - losses[2 + 2 * i]) / (2 * h)
         print(f"\ngradient {float(grad):.4f} vs central difference (h={h}) {fd:.4f}: {fd / float(grad) - 1:+.2%}")
-        assert fd == pytest.approx(float(grad), rel=0.1), f"h={h}: finite difference {fd:.4f} vs grad {float(grad):.4f}"
+        assert fd == pytest.approx(float(grad), rel=0.05), f"h={h}: finite difference {fd:.4f}, grad {float(grad):.4f}"
     assert not np.any(np.asarray(res.info.resampled))
 
 

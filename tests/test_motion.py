@@ -177,3 +177,48 @@ def test_diffuse_statistics_and_gradient():
     # MC error of mean(n^2) over 8000 normals: sqrt(2 / 8000) = 1.6 %.
     np.testing.assert_allclose(g, 2 * std, rtol=0.07)
     np.testing.assert_allclose(g, 2 * float(value) / std, rtol=1e-3)
+
+
+_move_and_diffuse = jax.jit(hp.move_and_diffuse)
+
+
+def test_move_and_diffuse_has_the_distribution_of_move_then_diffuse():
+    """Three normals per particle give the law of move_particles followed by diffuse (two-sample tests)."""
+    from scipy import stats
+
+    n = 20000
+    p = jnp.asarray(np.tile([2.0, 1.0], (n, 1)), jnp.float32)
+    odo = jnp.asarray([0.3, -0.1, 0.25], jnp.float32)
+    tn, rn, s = jnp.float32(0.3), jnp.float32(0.4), jnp.float32(0.05)
+    k1, k2, k3 = jax.random.split(jax.random.key(9), 3)
+    two = np.asarray(_diffuse(k2, _move(k1, p, odo, tn, rn), s), np.float64)
+    one = np.asarray(_move_and_diffuse(k3, p, odo, tn, rn, s), np.float64)
+    for axis in range(2):
+        assert stats.ks_2samp(two[:, axis], one[:, axis]).pvalue > 1e-3
+    # Along the direction that mixes both noises too, and the covariances agree.
+    assert stats.ks_2samp(two @ [0.6, 0.8], one @ [0.6, 0.8]).pvalue > 1e-3
+    np.testing.assert_allclose(np.cov(one.T), np.cov(two.T), rtol=0.06, atol=2e-5)
+    # Exact special cases: no noise at all is the noiseless move; a standing robot only diffuses.
+    zero = jnp.float32(0.0)
+    np.testing.assert_allclose(np.asarray(_move_and_diffuse(k3, p[:5], odo, zero, zero, zero)),
+                               ref_apply(np.asarray(p[:5]), np.asarray(odo)), atol=5e-6)
+    still = np.asarray(_move_and_diffuse(k3, p, jnp.zeros(3, jnp.float32), tn, rn, s), np.float64)
+    np.testing.assert_allclose(still.std(0), [0.05, 0.05], rtol=0.03)
+    np.testing.assert_allclose(still.mean(0), [2.0, 1.0], atol=5 * 0.05 / np.sqrt(n))
+
+
+def test_move_and_diffuse_gradients_are_reparameterised():
+    """Mean squared deviation from the noiseless move is (tn |d|)^2 + s^2 per axis: its gradients match."""
+    n = N_STAT
+    p = jnp.asarray(np.tile([1.5, -0.5], (n, 1)), jnp.float32)
+    odo = jnp.asarray([0.4, 0.3, 0.0], jnp.float32)  # |d| = 0.5, no turn
+    base = p - odo[None, :2]
+
+    def msd(tn, s):
+        out = hp.move_and_diffuse(jax.random.key(3), p, odo, tn, jnp.float32(0.1), s)
+        return jnp.mean(jnp.sum((out - base) ** 2, axis=1)) / 2
+
+    g_tn, g_s = jax.grad(msd, argnums=(0, 1))(jnp.float32(0.2), jnp.float32(0.1))
+    # d/dtn [(tn |d|)^2 + s^2] = 2 tn |d|^2 = 0.1; d/ds = 2 s = 0.2 (up to the sample's scatter).
+    np.testing.assert_allclose([float(g_tn), float(g_s)], [0.1, 0.2], rtol=0.1)
+    assert np.all(np.isfinite(jax.grad(msd, argnums=(0, 1))(jnp.float32(0.0), jnp.float32(0.0))))
