@@ -353,6 +353,28 @@ def _normalise_log(log_w: Float[Array, " n"]) -> Float[Array, " n"]:
     return jnp.where(jnp.isfinite(total), log_w - total, jnp.full_like(log_w, -math.log(n)))
 
 
+def _order_by_weight(weights: Float[Array, " n"]) -> Int[Array, " n"]:
+    """Particle indices by decreasing weight, from one sort of ``int32`` keys.
+
+    A single-operand integer sort is about three times faster on XLA:CPU than an argsort
+    (which sorts a key and an index payload with a compiled comparator). The key is the
+    weight's bit pattern (monotone for non-negative floats) with its ``ceil(log2 n)`` low
+    bits replaced by the index, so weights that agree to within ``2**(ceil(log2 n) - 24)``
+    relative (6e-5 for 500 particles) are ordered by index, as exact ties are. Resampling
+    is valid in any order; the top-fraction estimate and the explorer choice only move
+    between such near-equal weights.
+    """
+    n = weights.shape[0]
+    bits = max(1, (n - 1).bit_length())
+    if bits > 16:  # the key would lose more than half of the mantissa: sort exactly
+        return jnp.argsort(-weights, stable=True).astype(jnp.int32)
+    low = (1 << bits) - 1
+    # Equal weight bits: the larger (low - index), i.e. the smaller index, comes first. ~key sorts
+    # ascending exactly as key sorts descending.
+    key = (lax.bitcast_convert_type(weights, jnp.int32) & ~low) | (low - lax.iota(jnp.int32, n))
+    return low - (~jnp.sort(~key) & low)
+
+
 def _observe(particles, buffer: Measurements, params: FilterParams, config: FilterConfig):
     if config.observation == "gaussian":
         return gaussian_particle_weights(
@@ -438,7 +460,7 @@ def step(
     weights = jnp.exp(log_w)
 
     # One sort by decreasing weight serves the output, resampling and the explorers.
-    order = jnp.argsort(-weights, stable=True)
+    order = _order_by_weight(weights)
     sorted_particles, sorted_weights = particles[order], weights[order]
 
     # 4. Output (III-F): the best top_fraction are the first ones.
