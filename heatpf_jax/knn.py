@@ -38,7 +38,9 @@ not depend on it.
    ``kk - k`` slots left unfilled hold a *null group* (an extra ``+inf`` row appended
    to each level; its children are the null group of the level below, its slots
    the padding slot). The default ``k = 3`` under ``k_max = 16`` thus pays for 3
-   rounds per level, not 16.
+   rounds per level, not 16. Under ``vmap`` over ``k`` (sweeps) the batch runs the
+   largest ``k`` of the batch as a shared, unbatched loop bound; extra rounds only
+   keep more groups and neighbours beyond the ``k``-th, which ``selected`` masks.
 3. The outputs are recomputed from the selected slots with the plain formula,
    so values, weights and gradients (through the selected distances and weights;
    the selection itself is discrete and runs on stopped gradients) match
@@ -85,6 +87,7 @@ from __future__ import annotations
 import itertools
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -238,8 +241,26 @@ def _smallest_rows(
         return jnp.where(row == first[None, :], jnp.inf, values), out
 
     out = jnp.full((count, values.shape[1]), rows, jnp.int32)
-    num = jnp.clip(jnp.asarray(rounds, jnp.int32), 0, count)
+    num = jnp.clip(_shared_round_count(jnp.asarray(rounds, jnp.int32)), 0, count)
     return lax.fori_loop(jnp.zeros_like(num), num, body, (values, out))[1]
+
+
+@jax.custom_batching.custom_vmap
+def _shared_round_count(k: Int[Array, ""]) -> Int[Array, ""]:
+    """The number of selection rounds for a traced ``k``: ``k`` itself, or under ``vmap`` the batch's maximum.
+
+    A batched loop bound would make ``lax.fori_loop`` a while loop that selects its whole carry
+    (the ``[candidates, N]`` values of every batch member) after each round. More rounds than
+    ``k`` only keep more groups, which leaves the first ``k`` neighbours unchanged, so the batch
+    shares one unbatched bound instead.
+    """
+    return k
+
+
+@_shared_round_count.def_vmap
+def _shared_round_count_vmap(axis_size: int, in_batched: list[bool], k: Int[Array, " b"]):
+    del axis_size
+    return (jnp.max(k) if in_batched[0] else k), False
 
 
 def _with_null_row(table: Array, fill) -> Array:

@@ -330,3 +330,14 @@ def test_unknown_search_method_is_refused():
         hp.particle_weights(jnp.zeros((2, 2), jnp.float32), meas, 1, method="kdtree")
     with pytest.raises(ValueError, match="knn"):
         hp.validate_config(hp.FilterConfig(knn="kdtree"))
+
+
+def test_batched_k_shares_one_unbatched_round_count():
+    """Under vmap over k the selection loops share the batch's largest k as an unbatched bound (no carry
+    selects): out_axes=None would fail if the count were batched. Results stay exact (test_vmap_over_k)."""
+    from heatpf_jax.knn import _shared_round_count
+
+    ks = jnp.array([2, 7, 3], jnp.int32)
+    assert int(jax.vmap(_shared_round_count, out_axes=None)(ks)) == 7
+    assert int(jax.jit(jax.vmap(_shared_round_count, out_axes=None))(ks)) == 7
+    assert int(_shared_round_count(jnp.int32(4))) == 4
