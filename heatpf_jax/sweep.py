@@ -6,8 +6,10 @@ key (common random numbers, so differences between sets are not noise):
 
 * the batch is sharded over the local devices with ``jax.shard_map`` on a
   one-axis ``Mesh`` (``"batch"``); on several hosts, call
-  ``jax.distributed.initialize()`` first and pass ``devices=jax.devices()``:
-  the same program then spans every host's devices;
+  ``jax.distributed.initialize()`` first (on CPUs with
+  ``jax_cpu_collectives_implementation="gloo"``) and pass ``devices=jax.devices()``:
+  the same program then spans every host's devices, and every host receives the
+  whole result (tested with two processes on one machine);
 * on each device, ``lax.map(..., batch_size=chunk)`` vmaps ``chunk`` sets at a
   time, so peak memory grows with ``chunk``, not with the batch;
 * the batch is padded (by repeating its last set) to a multiple of

@@ -91,6 +91,55 @@ def test_two_devices_give_identical_results(small_sequence, small_config, tmp_pa
     assert "identical on 2 devices" in proc.stdout
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("localhost", 0))
+        return sock.getsockname()[1]
+
+
+def test_two_processes_as_two_hosts_give_identical_results(small_sequence, small_config, tmp_path):
+    """The multi-host path for real: two processes joined by ``jax.distributed.initialize`` (gloo
+    collectives over localhost), one CPU device each; the mesh spans both, results are gathered to both."""
+    batch = _batch()
+    one = np.asarray(sweep(jax.random.key(2), small_sequence, batch, small_config, chunk=2).mean)
+    np.save(tmp_path / "one.npy", one)
+    port = _free_port()
+    script = textwrap.dedent(f"""
+        import sys
+        import jax
+        pid = int(sys.argv[1])
+        jax.config.update("jax_cpu_collectives_implementation", "gloo")
+        jax.distributed.initialize(coordinator_address="localhost:{port}", num_processes=2, process_id=pid,
+                                   initialization_timeout=120)
+        assert jax.process_count() == 2 and len(jax.devices()) == 2 and len(jax.local_devices()) == 1
+        import numpy as np
+        from heatpf_jax.sim import simulate_standard
+        from heatpf_jax.sweep import sweep
+        from tests.test_sweep import _batch
+        from tests.conftest import SMALL_CONFIG
+        seq = simulate_standard(3, num_steps=20, shrink=4)
+        out = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_CONFIG, chunk=2, devices=jax.devices()).mean)
+        np.save({str(tmp_path)!r} + f"/host{{pid}}.npy", out)
+        print("process", pid, "of", jax.process_count(), "done")
+    """)
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env["PYTHONPATH"] = str(ROOT)
+    procs = [
+        subprocess.Popen([sys.executable, "-c", script, str(pid)], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+        for pid in (0, 1)
+    ]
+    outs = [proc.communicate(timeout=300) for proc in procs]
+    for pid, (proc, (stdout, stderr)) in enumerate(zip(procs, outs, strict=True)):
+        assert proc.returncode == 0, f"process {pid}: {stderr[-3000:]}"
+        assert f"process {pid} of 2 done" in stdout
+    host0, host1 = np.load(tmp_path / "host0.npy"), np.load(tmp_path / "host1.npy")
+    np.testing.assert_array_equal(host0, host1)  # both hosts hold the whole gathered result
+    np.testing.assert_allclose(host0, one, rtol=1e-5, atol=1e-5)
+
+
 def test_parse_grid_errors():
     assert parse_grid(["k=1,3", "aging=0.1,0.2"]) == {"k": [1, 3], "aging": [0.1, 0.2]}
     for bad, field in [
