@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["apply_overrides", "error_stats", "main", "write_estimates_csv"]
+__all__ = ["apply_overrides", "error_stats", "grid_config", "main", "write_estimates_csv"]
 
 CSV_HEADER = "t,x,y,cov_xx,cov_xy,cov_yy"
 METHODS = ("heatmap", "conventional", "kalman")
@@ -46,7 +46,23 @@ def apply_overrides(params, config, assignments: list[str]):
         else:
             known = ", ".join(FilterParams._fields + FilterConfig._fields)
             raise ValueError(f"{name}: unknown parameter (known: {known})")
-    return params._replace(**p_updates), config._replace(**c_updates)
+    params, config = params._replace(**p_updates), config._replace(**c_updates)
+    # k above the default bound raises the bound, unless k_max was given too.
+    if "k_max" not in c_updates and isinstance(params.k, int) and params.k > config.k_max:
+        config = config._replace(k_max=params.k)
+    return params, config
+
+
+def _k_max_given(assignments: list[str]) -> bool:
+    return any(item.partition("=")[0].strip() == "k_max" for item in assignments)
+
+
+def grid_config(config, grid: dict[str, list], assignments: list[str]):
+    """The sweep's config: ``k_max`` raised to the grid's largest k (one compilation covers the
+    whole grid), unless ``--set k_max=...`` was given."""
+    if "k" in grid and not _k_max_given(assignments):
+        config = config._replace(k_max=max(config.k_max, *grid["k"]))
+    return config
 
 
 def _parse(name: str, raw: str, kind: type):
@@ -301,6 +317,7 @@ def _cmd_sweep(args) -> int:
     params, config = _settings(args)
     config = config._replace(method=args.method)
     grid = parse_grid(args.grid or [])
+    config = grid_config(config, grid, args.set or [])
     if (args.input is None) == (args.scenario is None):
         raise ValueError("sweep: give either INPUT.npz or --scenario NAME")
     if args.scenario is not None and args.scenario not in SCENARIOS:

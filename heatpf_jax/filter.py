@@ -83,7 +83,9 @@ class FilterConfig(NamedTuple):
     Attributes:
         num_particles: N. 500, as the original team ran the filter.
         max_measurements: size of the measurement buffer; the strongest pixels are kept.
-        k_max: static upper bound on the traced ``FilterParams.k``.
+        k_max: static upper bound on the traced ``FilterParams.k``: k can be swept from 1 to
+            ``k_max`` without recompiling. The search costs grow with it even when k is smaller
+            (its arrays are sized for ``k_max``), so keep it near the largest k you use.
         resampler: ``"systematic"`` (default), ``"stratified"``, ``"multinomial"`` or ``"residual"``.
         spawn: explorer spawn distribution, ``"uniform"`` over ``spawn_box`` (default)
             or ``"gaussian"`` around the current estimate with ``FilterParams.explorer_std``.
@@ -105,7 +107,7 @@ class FilterConfig(NamedTuple):
 
     num_particles: int = 500
     max_measurements: int = 1024
-    k_max: int = 16
+    k_max: int = 10
     resampler: str = "systematic"
     spawn: str = "uniform"
     spawn_box: tuple[float, float, float, float] = (0.0, 7.0, -4.0, 4.0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
-from heatpf_jax.cli import CSV_HEADER, apply_overrides, error_stats, main
+from heatpf_jax.cli import CSV_HEADER, apply_overrides, error_stats, grid_config, main
 from heatpf_jax.sim import simulate_standard
 from tests.conftest import SMALL_CONFIG
 
@@ -84,6 +84,23 @@ def test_overrides_reach_params_and_config():
                                      ["k=7", "aging=0.2", "resampler=residual", "spawn_box=-1,1,-2,2"])
     assert params.k == 7 and isinstance(params.k, int) and params.aging == 0.2
     assert config.resampler == "residual" and config.spawn_box == (-1.0, 1.0, -2.0, 2.0)
+
+
+def test_k_above_the_default_bound_raises_k_max_unless_given():
+    default = hp.FilterConfig().k_max
+    _, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), [f"k={default + 2}"])
+    assert config.k_max == default + 2
+    _, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), ["k=2"])
+    assert config.k_max == default
+    # An explicit k_max stays, and the out-of-range k is then refused, naming the field.
+    params, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), [f"k={default + 2}", "k_max=4"])
+    assert config.k_max == 4
+    with pytest.raises(ValueError, match="^k: "):
+        hp.validate_params(params, config)
+    # A sweep's k grid raises it the same way.
+    assert grid_config(hp.FilterConfig(), {"k": [1, default + 5]}, []).k_max == default + 5
+    assert grid_config(hp.FilterConfig(), {"k": [1, 2]}, []).k_max == default
+    assert grid_config(hp.FilterConfig(k_max=4), {"k": [1, 9]}, ["k_max=4"]).k_max == 4
 
 
 def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys):
