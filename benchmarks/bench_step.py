@@ -11,7 +11,7 @@ What it measures, for each ``(particles P, measurements M)`` size (default 500x1
   ours (max relative difference, tolerance 1e-5);
 * ``step, heat map``: ``heatpf_jax.step`` under ``jax.jit`` on a 200x150 heat map whose blob yields more
   than M pixels above the threshold (projection, buffer replacement, weighting, estimate, resampling,
-  explorers), for two parameter choices: the shipped defaults (``k = 3`` under ``FilterConfig.k_max = 10``,
+  explorers), for two parameter choices: the shipped defaults (``FilterParams.k`` under ``FilterConfig.k_max``,
   so k stays sweepable) and ``k = k_max = --k``;
 * ``step, aging``: the same step with ``has_heatmap=False`` (the buffer ages instead);
 * ``step, NumPy + cKDTree``: the same step written with NumPy + cKDTree, at the same k.
@@ -192,7 +192,7 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
     pose_np = np.asarray(hp.camera_pose(**CAMERA))
     n_exp = round(hp.FilterParams().explorer_fraction * num_particles)
     state_for_weights = None
-    # The shipped defaults (k = 3 under k_max = 10) and k = k_max = --k.
+    # The shipped defaults (k under k_max) and k = k_max = --k.
     choices = ((f"defaults k={DEFAULT_K}/{DEFAULT_K_MAX}", DEFAULT_K, DEFAULT_K_MAX), (f"k={k}", k, k))
     for label, step_k, k_max in choices:
         config = hp.FilterConfig(num_particles=num_particles, max_measurements=max_measurements, k_max=k_max)

@@ -145,7 +145,7 @@ class FilterParams(NamedTuple):
         kalman_meas_std: measurement noise of the ``"kalman"`` baseline, metres.
     """
 
-    k: int = 3
+    k: int = 1
     threshold: float = 0.3
     aging: float = 0.3
     min_weight: float = 0.1

@@ -37,7 +37,7 @@ not depend on it.
    ``lax.fori_loop``: the arrays keep their static ``kk``-sized shapes, and the
    ``kk - k`` slots left unfilled hold a *null group* (an extra ``+inf`` row appended
    to each level; its children are the null group of the level below, its slots
-   the padding slot). The default ``k = 3`` under ``k_max = 10`` thus pays for 3
+   the padding slot). ``k = 3`` under the default ``k_max = 10`` thus pays for 3
    rounds per level, not 10. Under ``vmap`` over ``k`` (sweeps) the batch runs the
    largest ``k`` of the batch as a shared, unbatched loop bound; extra rounds only
    keep more groups and neighbours beyond the ``k``-th, which ``selected`` masks.
