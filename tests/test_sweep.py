@@ -35,6 +35,17 @@ def test_sweep_equals_vmapped_runs_for_every_chunk(small_sequence, small_config)
     assert np.abs(np.asarray(out.mean[0]) - np.asarray(out.mean[5])).max() > 1e-3
 
 
+def test_sweep_groups_sets_by_k_and_returns_the_callers_order(small_sequence, small_config):
+    """Sets run sorted by k (chunks of similar k run fewer selection rounds); results come back in order."""
+    sets = [hp.FilterParams(k=k, threshold=t) for k, t in ((6, 0.3), (1, 0.5), (4, 0.3), (1, 0.3), (6, 0.5))]
+    batch = hp.stack_params(sets)
+    key = jax.random.key(5)
+    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_config).info)(batch)
+    out = sweep(key, small_sequence, batch, small_config, chunk=2)
+    np.testing.assert_allclose(np.asarray(out.mean), np.asarray(ref.mean), rtol=1e-5, atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(out.num_valid), np.asarray(ref.num_valid))
+
+
 def test_sweep_compiles_once_for_repeated_calls(small_sequence, small_config):
     batch = _batch()
     sweep(jax.random.key(0), small_sequence, batch, small_config, chunk=2)
