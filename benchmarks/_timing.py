@@ -9,7 +9,7 @@ from collections.abc import Callable
 import jax
 import numpy as np
 
-__all__ = ["first_call", "positive_int", "stats_ms"]
+__all__ = ["first_call", "parse_sizes", "positive_int", "stats_ms"]
 
 
 def positive_int(text: str) -> int:
@@ -18,6 +18,21 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
     return value
+
+
+def parse_sizes(text: str, max_measurements: int | None = None) -> list[tuple[int, int]]:
+    """argparse type: comma-separated ``PxM`` sizes (particles x measurements), e.g. ``500x1024,1000x4096``."""
+    sizes = []
+    for item in text.split(","):
+        try:
+            p, m = (int(v) for v in item.lower().split("x"))
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(f"size {item!r}: expected PxM, e.g. 500x1024") from err
+        limit = max_measurements if max_measurements is not None else m
+        if p < 1 or m < 1 or m > limit:
+            raise argparse.ArgumentTypeError(f"size {item!r}: need P >= 1 and 1 <= M <= {limit}")
+        sizes.append((p, m))
+    return sizes
 
 
 def first_call(fn: Callable[[], object]) -> float:

@@ -51,6 +51,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy
 from _timing import first_call, positive_int, stats_ms  # noqa: E402  (sibling module)
+from _timing import parse_sizes as parse_size_list  # noqa: E402
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
@@ -67,18 +68,8 @@ DEFAULT_K, DEFAULT_K_MAX = hp.FilterParams().k, hp.FilterConfig().k_max
 
 
 def parse_sizes(text: str) -> list[tuple[int, int]]:
-    sizes = []
-    for item in text.split(","):
-        try:
-            p, m = (int(v) for v in item.lower().split("x"))
-        except ValueError as err:
-            raise argparse.ArgumentTypeError(f"size {item!r}: expected PxM, e.g. 500x1024") from err
-        if p < 1 or m < 1:
-            raise argparse.ArgumentTypeError(f"size {item!r}: both numbers must be positive")
-        sizes.append((p, m))
-    return sizes
-
-
+    """``PxM`` sizes; M at most the heat map's pixel count (the buffer is filled from its pixels)."""
+    return parse_size_list(text, HEATMAP_SHAPE[0] * HEATMAP_SHAPE[1])
 
 
 def make_heatmap(seed: int = 0) -> np.ndarray:
@@ -162,10 +153,6 @@ def time_calls(call: Callable[[int], object], repeats: int) -> np.ndarray:
         call(WARMUP + i)
         times[i] = time.perf_counter() - t0
     return times
-
-
-
-
 
 
 def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) -> dict:

@@ -59,6 +59,7 @@ import jaxlib
 import numpy as np
 import scipy
 from _timing import first_call, positive_int, stats_ms  # noqa: E402  (sibling module)
+from _timing import parse_sizes as parse_size_list  # noqa: E402
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
@@ -86,17 +87,8 @@ LIGHT_METHODS = ("blocked", "cKDTree")  # timed side by side, before the dense r
 
 
 def parse_sizes(text: str) -> list[tuple[int, int]]:
-    sizes = []
-    for item in text.split(","):
-        try:
-            p, m = (int(v) for v in item.lower().split("x"))
-        except ValueError as err:
-            raise argparse.ArgumentTypeError(f"size {item!r}: expected PxM, e.g. 500x1024") from err
-        if p < 1 or m < 1 or m > HEATMAP_SHAPE[0] * HEATMAP_SHAPE[1]:
-            limit = HEATMAP_SHAPE[0] * HEATMAP_SHAPE[1]
-            raise argparse.ArgumentTypeError(f"size {item!r}: need P >= 1 and 1 <= M <= {limit}")
-        sizes.append((p, m))
-    return sizes
+    """``PxM`` sizes; M at most the heat map's pixel count (the buffer is filled from its pixels)."""
+    return parse_size_list(text, HEATMAP_SHAPE[0] * HEATMAP_SHAPE[1])
 
 
 def parse_layouts(text: str) -> list[str]:
@@ -115,8 +107,6 @@ def parse_methods(text: str) -> list[str]:
     if "blocked" not in names:
         raise argparse.ArgumentTypeError("methods: 'blocked' is required")
     return [m for m in METHODS if m in names]
-
-
 
 
 # --------------------------------------------------------------------------- inputs
@@ -230,10 +220,6 @@ def time_blocks(calls: list[Callable[[], object]], repeats: int, blocks: int = B
                 call()
                 times[j].append(time.perf_counter() - t0)
     return [np.asarray(t) for t in times]
-
-
-
-
 
 
 def rel_diff(a: np.ndarray, b: np.ndarray) -> float:

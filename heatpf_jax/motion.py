@@ -36,6 +36,11 @@ def apply_odometry(points: Float[ArrayLike, "n 2"], odometry: Float[ArrayLike, "
     return jnp.stack([c * qx + s * qy, -s * qx + c * qy], axis=-1)
 
 
+def _safe_sqrt(x: Float[Array, ""]) -> Float[Array, ""]:
+    """sqrt with a zero (not infinite) gradient at 0, so reparameterised noise stays differentiable."""
+    return jnp.where(x > 0.0, jnp.sqrt(jnp.where(x > 0.0, x, 1.0)), 0.0)
+
+
 def move_particles(
     key: PRNGKeyArray,
     particles: Float[ArrayLike, "n 2"],
@@ -61,8 +66,7 @@ def move_particles(
     """
     particles = jnp.asarray(particles)
     odometry = jnp.asarray(odometry, particles.dtype)
-    sq = odometry[0] ** 2 + odometry[1] ** 2
-    dist = jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
+    dist = _safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
     scale = jnp.stack([trans_noise * dist, trans_noise * dist, rot_noise * jnp.abs(odometry[2])])
     noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
     return apply_odometry(particles, odometry[None, :] + noise * scale[None, :])
@@ -107,8 +111,7 @@ def move_and_diffuse(
     particles = jnp.asarray(particles)
     odometry = jnp.asarray(odometry, particles.dtype)
     sq = odometry[0] ** 2 + odometry[1] ** 2
-    var = trans_noise * trans_noise * sq + diffusion_std * diffusion_std
-    std = jnp.where(var > 0.0, jnp.sqrt(jnp.where(var > 0.0, var, 1.0)), 0.0)
+    std = _safe_sqrt(trans_noise * trans_noise * sq + diffusion_std * diffusion_std)
     noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
     theta = odometry[2] + rot_noise * jnp.abs(odometry[2]) * noise[:, 2]
     shift = jnp.broadcast_to(odometry[None, :2], (particles.shape[0], 2))
