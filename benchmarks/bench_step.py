@@ -3,16 +3,17 @@
 What it measures, for each ``(particles P, measurements M)`` size (default 500x1024 and 1000x4096):
 
 * ``particle_weights``: the exact blocked kernel (``heatpf_jax.particle_weights(..., method="blocked")``,
-  what ``FilterConfig.knn="auto"`` picks at these sizes) and the plain dense ``top_k``, under ``jax.jit``,
+  what ``FilterOptions.knn="auto"`` picks at these sizes) and the plain dense ``top_k``, under ``jax.jit``,
   at ``--k`` (default 10);
 * ``cKDTree build+query`` / ``cKDTree total``: a NumPy + ``scipy.spatial.cKDTree`` implementation of the
   same model on the same inputs (tree on the valid measurement positions, ``query(particles, k)``; "total"
   adds the masking and the sum of ``weight / max(distance, 0.01)``). Its weights are checked against
   ours (max relative difference, tolerance 1e-5);
-* ``step, heat map``: ``heatpf_jax.step`` under ``jax.jit`` on a 200x150 heat map whose blob yields more
-  than M pixels above the threshold (projection, buffer replacement, weighting, estimate, resampling,
-  explorers), for two parameter choices: the shipped defaults (``FilterParams.k`` under ``FilterConfig.k_max``,
-  so k stays sweepable) and ``k = k_max = --k``;
+* ``step, heat map``: ``Filter.step`` of ``heatpf_jax.heatmap_filter`` under ``jax.jit`` (the model a static
+  argument) on a 200x150 heat map whose blob yields more than M pixels above the threshold (projection,
+  buffer replacement, weighting, estimate, resampling, explorers), for two parameter choices: the shipped
+  defaults (the default params' ``k`` under ``FilterOptions().k_max``, so k stays sweepable) and
+  ``k = k_max = --k``;
 * ``step, aging``: the same step with ``has_heatmap=False`` (the buffer ages instead);
 * ``step, NumPy + cKDTree``: the same step written with NumPy + cKDTree, at the same k.
 
@@ -30,6 +31,9 @@ they save and make step times jittery.
 Run it from the repository root::
 
     .venv/bin/python benchmarks/bench_step.py [--repeats N] [--sizes 500x1024,1000x4096] [--k 10] [--threads 1]
+        [--label TEXT]
+
+``--label`` is printed in the header, to tell apart runs of different commits.
 
 It exits with status 1 if the cKDTree weights disagree with ours.
 """
@@ -55,6 +59,7 @@ from _timing import parse_sizes as parse_size_list  # noqa: E402
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
+from heatpf_jax import params as P
 
 HEATMAP_SHAPE = (150, 200)  # rows, columns: the paper's 200 x 150 heat map
 INTRINSICS = (143.0, 143.0, 99.5, 74.5)
@@ -64,7 +69,20 @@ MIN_DISTANCE = 0.01
 RTOL = 1e-5
 WARMUP = 3
 WORKERS = 1 if os.environ.get("PJRT_NPROC") == "1" else -1  # cKDTree query threads (-1: all cores)
-DEFAULT_K, DEFAULT_K_MAX = hp.FilterParams().k, hp.FilterConfig().k_max
+
+
+def setting(model, params, name: str):
+    """The value of the parameter ``name`` (dotted, or its last part when unambiguous) in ``params``."""
+    names = P.leaf_names(model.properties())
+    full = P.resolve_name(name, names)
+    if full is None:
+        raise ValueError(f"{name}: unknown parameter (known: {', '.join(names)})")
+    return jax.tree.leaves(params)[names.index(full)]
+
+
+DEFAULT_MODEL = hp.heatmap_filter()
+DEFAULT_PARAMS = DEFAULT_MODEL.default_params()
+DEFAULT_K, DEFAULT_K_MAX = setting(DEFAULT_MODEL, DEFAULT_PARAMS, "k"), hp.FilterOptions().k_max
 
 
 def parse_sizes(text: str) -> list[tuple[int, int]]:
@@ -157,7 +175,7 @@ def time_calls(call: Callable[[int], object], repeats: int) -> np.ndarray:
 
 def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) -> dict:
     heatmap = make_heatmap()
-    threshold = pick_threshold(heatmap, max_measurements, hp.FilterParams().min_weight)
+    threshold = pick_threshold(heatmap, max_measurements, setting(DEFAULT_MODEL, DEFAULT_PARAMS, "min_weight"))
     cam = jnp.asarray(hp.camera_pose(**CAMERA), jnp.float32)
     intr = jnp.asarray(INTRINSICS, jnp.float32)
 
@@ -173,40 +191,41 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
         )
 
     with_map, without_map = inputs(True), inputs(False)
-    step = jax.jit(hp.step, static_argnames="config")
+    step = jax.jit(hp.Filter.step, static_argnums=0)  # step(model, key, state, inputs, params); model static
     rows = []
     rng = np.random.default_rng(0)
     pose_np = np.asarray(hp.camera_pose(**CAMERA))
-    n_exp = round(hp.FilterParams().explorer_fraction * num_particles)
+    n_exp = round(setting(DEFAULT_MODEL, DEFAULT_PARAMS, "explorer_fraction") * num_particles)
     state_for_weights = None
-    compiled: set[hp.FilterConfig] = set()
+    compiled: set[hp.Filter] = set()
     # The shipped defaults (k under k_max) and k = k_max = --k.
     choices = ((f"defaults k={DEFAULT_K}/{DEFAULT_K_MAX}", DEFAULT_K, DEFAULT_K_MAX), (f"k={k}", k, k))
     for label, step_k, k_max in choices:
-        config = hp.FilterConfig(num_particles=num_particles, max_measurements=max_measurements, k_max=k_max)
-        params_py = hp.FilterParams(k=step_k, threshold=threshold)
-        hp.validate_config(config)
-        hp.validate_params(params_py, config)
-        params = params_py.as_arrays()
+        options = hp.FilterOptions(num_particles=num_particles, max_measurements=max_measurements, k_max=k_max)
+        model = hp.heatmap_filter(options)
+        params_py = model.make_params(k=step_k, threshold=threshold)
+        model.validate()
+        hp.validate_params(params_py, model)
+        params = P.as_arrays(params_py, model.properties())
         key_init, key_first, key_steps = jax.random.split(jax.random.key(0), 3)
-        state0 = hp.init(key_init, config, params)
-        # Compile (timed once; "-" when an earlier choice had the same config, so the program is cached)
+        state0 = model.init(key_init, params)
+        # Compile (timed once; "-" when an earlier choice had the same model, so the program is cached)
         # and one step with a heat map: its state holds a full buffer for both timings.
-        t_compile = first_call(lambda: step(key_first, state0, with_map, params, config))
-        t_compile = None if config in compiled else t_compile
-        compiled.add(config)
-        state, info0 = step(key_first, state0, with_map, params, config)
+        t_compile = first_call(lambda: step(model, key_first, state0, with_map, params))
+        t_compile = None if model in compiled else t_compile
+        compiled.add(model)
+        state, info0 = step(model, key_first, state0, with_map, params)
         jax.block_until_ready(state)
         n_keys = WARMUP + repeats
         keys = list(jax.random.split(key_steps, 2 * n_keys))
         keys_map, keys_age = keys[:n_keys], keys[n_keys:]
-        _, info_map = step(keys_map[0], state, with_map, params, config)
-        _, info_age = step(keys_age[0], state, without_map, params, config)
-        t_map = time_calls(lambda i: jax.block_until_ready(step(keys_map[i], state, with_map, params, config)),
+        _, info_map = step(model, keys_map[0], state, with_map, params)
+        _, info_age = step(model, keys_age[0], state, without_map, params)
+        t_map = time_calls(lambda i: jax.block_until_ready(step(model, keys_map[i], state, with_map, params)),
                            repeats)
-        t_age = time_calls(lambda i: jax.block_until_ready(step(keys_age[i], state, without_map, params, config)),
+        t_age = time_calls(lambda i: jax.block_until_ready(step(model, keys_age[i], state, without_map, params)),
                            repeats)
-        t_np = time_calls(lambda i: numpy_step(rng, np.asarray(state.particles, np.float64), heatmap, pose_np,
+        t_np = time_calls(lambda i: numpy_step(rng, np.asarray(state.particles.xy, np.float64), heatmap, pose_np,
                                                threshold, max_measurements, step_k, n_exp), repeats)
         rows += [
             (f"step, heat map ({label})", t_map, t_compile, int(info_map.num_valid)),
@@ -217,12 +236,15 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
 
     # The observation model on the step's inputs: the state's particles and this heat map's buffer.
     project = jax.jit(hp.project_heatmap, static_argnames="max_measurements")
-    defaults = hp.FilterParams()
+
+    def default(name: str):
+        return setting(DEFAULT_MODEL, DEFAULT_PARAMS, name)
+
     buffer = project(heatmap, intr, cam, threshold=jnp.float32(threshold), plane_height=PLANE_HEIGHT,
-                     max_measurements=max_measurements, max_distance=defaults.max_distance)
-    buffer = hp.update_buffer(hp.empty_measurements(max_measurements), buffer, True, defaults.aging,
-                              defaults.min_weight)
-    particles = state_for_weights.particles
+                     max_measurements=max_measurements, max_distance=default("max_distance"))
+    buffer = hp.update_buffer(hp.empty_measurements(max_measurements), buffer, True, default("aging"),
+                              default("min_weight"))
+    particles = state_for_weights.particles.xy
     jax.block_until_ready((buffer, particles))
     weights_fn = jax.jit(lambda p, m: hp.particle_weights(p, m, k, method="blocked"))
     t_compile_pw = first_call(lambda: weights_fn(particles, buffer))
@@ -273,12 +295,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--k", type=positive_int, default=10, help="neighbours per particle (default 10)")
     parser.add_argument("--threads", choices=("all", "1"), default="all",
                         help="1: XLA thread pool of one thread (PJRT_NPROC=1) and cKDTree workers=1 (default all)")
+    parser.add_argument("--label", default="", metavar="TEXT",
+                        help="printed in the header, e.g. the commit measured (default none)")
     args = parser.parse_args(argv)
     if (args.threads == "1") != (os.environ.get("PJRT_NPROC") == "1"):
         parser.error("--threads 1 must be given on the command line (PJRT_NPROC is read when JAX starts)")
 
     dev = jax.devices()[0]
     print("heatpf_jax benchmark: observation model (eq. 1) and one filter step")
+    print(f"label: {args.label or '-'}")
     print(f"python {platform.python_version()}  jax {jax.__version__}  numpy {np.__version__}  "
           f"scipy {scipy.__version__}  heatpf_jax {hp.__version__}")
     print(f"device: {dev.platform} / {dev.device_kind} ({len(jax.devices())} device(s))  os.cpu_count(): "
@@ -293,6 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     results = [bench_size(p, m, args.k, args.repeats) for p, m in args.sizes]
 
     header = f"{'P':>5} {'M':>5}  {'what':<40} {'median ms':>10} {'IQR ms':>9} {'compile s':>9} {'n_valid':>7}"
+    header += f"  [{args.label}]" if args.label else ""
     print(header)
     print("-" * len(header))
     for res in results:

@@ -29,10 +29,10 @@ from heatpf_jax.sim import simulate
 from heatpf_jax.sweep import sweep, sweep_memory
 
 
-def _params(n: int) -> hp.FilterParams:
+def _params(model: hp.Filter, n: int) -> hp.FilterParams:
     rng = np.random.default_rng(0)
     sets = [
-        hp.FilterParams(
+        model.make_params(
             k=int(rng.integers(1, 11)),
             threshold=float(rng.uniform(0.2, 0.6)),
             aging=float(rng.uniform(0.0, 0.3)),
@@ -52,8 +52,8 @@ def _timed(fn) -> float:
 
 def measure(sets: int, steps: int, chunks: list[int], loop: bool) -> dict:
     seq = simulate("standard", 0, num_steps=steps)
-    config = hp.FilterConfig(k_max=10)
-    batch = _params(sets)
+    model = hp.heatmap_filter(hp.FilterOptions(k_max=10))
+    batch = _params(model, sets)
     key = jax.random.key(0)
     out = {"devices": len(jax.devices()), "rows": []}
     if loop:
@@ -61,18 +61,18 @@ def measure(sets: int, steps: int, chunks: list[int], loop: bool) -> dict:
 
         def one_at_a_time():
             for p in singles:
-                hp.run(key, seq, p, config).info.mean.block_until_ready()
+                hp.run(key, seq, p, model).info.mean.block_until_ready()
 
         t = _timed(one_at_a_time)
         out["rows"].append({"what": "one at a time (loop of run)", "seconds": t, "temp_mb": None})
-        ref = np.stack([np.asarray(hp.run(key, seq, p, config).info.mean) for p in singles[:4]])
+        ref = np.stack([np.asarray(hp.run(key, seq, p, model).info.mean) for p in singles[:4]])
         out["ref"] = ref.tolist()
     for chunk in chunks:
-        t = _timed(lambda c=chunk: sweep(key, seq, batch, config, chunk=c).mean.block_until_ready())
-        mem = sweep_memory(key, seq, batch, config, chunk=chunk)
+        t = _timed(lambda c=chunk: sweep(key, seq, batch, model, chunk=c).mean.block_until_ready())
+        mem = sweep_memory(key, seq, batch, model, chunk=chunk)
         row = {"what": f"sweep, chunk {chunk}", "seconds": t, "temp_mb": mem.temp_bytes / 2**20}
         out["rows"].append(row)
-    out["first4"] = np.asarray(sweep(key, seq, batch, config, chunk=chunks[0]).mean[:4]).tolist()
+    out["first4"] = np.asarray(sweep(key, seq, batch, model, chunk=chunks[0]).mean[:4]).tolist()
     return out
 
 

@@ -45,9 +45,7 @@ def main(argv: list[str] | None = None) -> None:
     table: dict[str, dict[str, float]] = {}
     for scenario in args.scenarios:
         seqs = [simulate(scenario, s) for s in args.seeds]
-        result = evaluate_sequences(
-            scenario, seqs, params=hp.FilterParams(), config=hp.FilterConfig(), variants=variants
-        )
+        result = evaluate_sequences(scenario, seqs, options=hp.FilterOptions(), variants=variants)
         for m in result.methods:
             table.setdefault(m.variant.name, {})[scenario] = m.stats(10)["mean"]
     seeds = f"{args.seeds.start}-{args.seeds.stop - 1}"

@@ -4,22 +4,31 @@ Fiedler, Bestmann, Zhang, "Position Estimation on Image-Based Heat Map Input
 using Particle Filters in Cartesian Space".
 """
 
+from heatpf_jax.baselines import KalmanFilter, KalmanParams, KalmanState
+from heatpf_jax.buffers import AgingBuffer, AgingParams, LatestOnly
 from heatpf_jax.camera import camera_pose, pixel_ray, project_pixel, project_points
-from heatpf_jax.estimate import Estimate, sorted_top_fraction_estimate, top_fraction_estimate, weighted_mean_cov
-from heatpf_jax.explorers import explorer_count, explorer_mask, explorer_slots, spawn_gaussian, spawn_uniform
-from heatpf_jax.filter import (
-    FilterConfig,
-    FilterParams,
-    FilterState,
-    RunResult,
-    StepInfo,
-    StepInputs,
-    init,
-    run,
-    stack_params,
-    step,
-    validate_config,
-    validate_params,
+from heatpf_jax.estimate import (
+    Estimate,
+    TopFraction,
+    TopFractionParams,
+    sorted_top_fraction_estimate,
+    top_fraction_estimate,
+    weighted_mean_cov,
+)
+from heatpf_jax.filter import Filter, FilterParams, FilterState, StepInfo
+from heatpf_jax.injection import (
+    ExplorerParams,
+    GaussianExplorerParams,
+    GaussianExplorers,
+    InjectionContext,
+    UniformBox,
+    UniformExplorers,
+    explorer_count,
+    explorer_mask,
+    explorer_slots,
+    spawn_gaussian,
+    spawn_uniform,
+    take_slots,
 )
 from heatpf_jax.knn import k_nearest_blocked
 from heatpf_jax.measurements import (
@@ -31,35 +40,92 @@ from heatpf_jax.measurements import (
     project_heatmap,
     update_buffer,
 )
-from heatpf_jax.motion import apply_odometry, diffuse, move_and_diffuse, move_particles
-from heatpf_jax.observation import gaussian_particle_weights, k_nearest, particle_weights
+from heatpf_jax.motion import (
+    DiffusionOnly,
+    Particles,
+    RandomWalk,
+    RandomWalkParams,
+    apply_odometry,
+    diffuse,
+    move_and_diffuse,
+    move_particles,
+)
+from heatpf_jax.observation import (
+    Floored,
+    GaussianKernel,
+    InverseDistance,
+    InverseDistanceParams,
+    gaussian_particle_weights,
+    k_nearest,
+    particle_weights,
+)
+from heatpf_jax.pieces import StepInputs
+from heatpf_jax.presets import FilterOptions, Method, bitbots2018, build, conventional_filter, heatmap_filter
 from heatpf_jax.resampling import (
     RESAMPLERS,
+    ESSParams,
+    ESSResampling,
+    Resampled,
     effective_sample_size,
     multinomial,
     residual,
     stratified,
     systematic,
 )
+from heatpf_jax.rollout import RunResult, run, stack_params, validate_params
 from heatpf_jax.sequence import Sequence, SequenceError, load_sequence, save_sequence, validate_sequence
+from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
 
 __version__ = "0.1.0"
 
 __all__ = [
     "RESAMPLERS",
+    "AgingBuffer",
+    "AgingParams",
+    "ClusterCentreSource",
+    "DiffusionOnly",
+    "ESSParams",
+    "ESSResampling",
     "Estimate",
-    "FilterConfig",
+    "ExplorerParams",
+    "Filter",
+    "FilterOptions",
     "FilterParams",
     "FilterState",
+    "Floored",
+    "GaussianExplorerParams",
+    "GaussianExplorers",
+    "GaussianKernel",
+    "InjectionContext",
+    "InverseDistance",
+    "InverseDistanceParams",
+    "KalmanFilter",
+    "KalmanParams",
+    "KalmanState",
+    "LatestOnly",
     "Measurements",
+    "Method",
+    "Particles",
+    "PixelSource",
+    "RandomWalk",
+    "RandomWalkParams",
+    "Resampled",
     "RunResult",
     "Sequence",
     "SequenceError",
+    "SourceParams",
     "StepInfo",
     "StepInputs",
+    "TopFraction",
+    "TopFractionParams",
+    "UniformBox",
+    "UniformExplorers",
     "age_measurements",
     "apply_odometry",
+    "bitbots2018",
+    "build",
     "camera_pose",
+    "conventional_filter",
     "diffuse",
     "downscale_heatmap",
     "effective_sample_size",
@@ -68,7 +134,7 @@ __all__ = [
     "explorer_mask",
     "explorer_slots",
     "gaussian_particle_weights",
-    "init",
+    "heatmap_filter",
     "k_nearest",
     "k_nearest_blocked",
     "load_sequence",
@@ -84,16 +150,15 @@ __all__ = [
     "residual",
     "run",
     "save_sequence",
+    "sorted_top_fraction_estimate",
     "spawn_gaussian",
     "spawn_uniform",
     "stack_params",
-    "step",
     "stratified",
     "systematic",
-    "sorted_top_fraction_estimate",
+    "take_slots",
     "top_fraction_estimate",
     "update_buffer",
-    "validate_config",
     "validate_params",
     "validate_sequence",
     "weighted_mean_cov",

@@ -5,64 +5,107 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["apply_overrides", "error_stats", "grid_config", "main", "write_estimates_csv"]
+from heatpf_jax.files import write_atomic
+
+__all__ = ["error_stats", "grid_config", "main", "parse_settings", "write_estimates_csv"]
 
 CSV_HEADER = "t,x,y,cov_xx,cov_xy,cov_yy"
-METHODS = ("heatmap", "conventional", "kalman")
+# Names of earlier versions, still accepted by --set and --grid.
+_ALIASES = {"kalman_accel_std": "accel_std", "kalman_meas_std": "meas_std"}
 
 
-def apply_overrides(params, config, assignments: list[str]):
-    """Applies ``name=value`` overrides to FilterParams or FilterConfig fields.
+def _method_names() -> list[str]:
+    from heatpf_jax.presets import METHODS
+
+    return list(METHODS)
+
+
+def _param_of(name: str, methods, options, typed: str | None = None):
+    """The :class:`~heatpf_jax.params.Param` that ``name`` refers to in the first of ``methods`` that has it.
+
+    ``typed`` is the name as the user wrote it (a legacy alias), for the error message.
+    """
+    import jax
+
+    from heatpf_jax import params as P
+    from heatpf_jax.presets import build
+
+    known = []
+    for method in methods:
+        props = build(method, options).model.properties()
+        names = P.leaf_names(props)
+        full = P.resolve_name(name, names)
+        if full is not None:
+            return jax.tree.leaves(props, is_leaf=lambda x: isinstance(x, P.Param))[names.index(full)]
+        known += [n for n in names if n not in known]
+    where = f"method {methods[0]}" if len(methods) == 1 else "any method"
+    raise ValueError(f"{typed or name}: not a parameter of {where} (known: {', '.join(known)}; static options: "
+                     f"{', '.join(_options_fields())})")
+
+
+def _options_fields() -> tuple[str, ...]:
+    from heatpf_jax.presets import FilterOptions
+
+    return FilterOptions._fields
+
+
+def parse_settings(assignments: list[str], methods=("heatmap",)):
+    """Parses ``--set name=value`` items into static options and parameter settings.
+
+    A name is a :class:`~heatpf_jax.presets.FilterOptions` field (``num_particles``, ``resampler``,
+    ...) or a parameter of one of ``methods``, dotted (``motion.diffusion_std``) or by its last
+    part where that is unambiguous (``diffusion_std``). A ``k`` above the default ``k_max`` raises
+    ``k_max``, unless ``k_max`` was given too.
+
+    Returns:
+        ``(options, settings)``: a :class:`~heatpf_jax.presets.FilterOptions` and ``{name: value}``.
 
     Raises:
         ValueError: naming the field when it is unknown or its value does not parse.
     """
-    from heatpf_jax.filter import FilterConfig, FilterParams
+    from heatpf_jax.presets import FilterOptions, validate_options
 
-    p_updates, c_updates = {}, {}
+    o_updates, raw = {}, {}
     for item in assignments:
-        name, sep, raw = item.partition("=")
+        name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or not name:
             raise ValueError(f"--set: expected name=value, got {item!r}")
-        if name in FilterParams._fields:
-            default = FilterParams._field_defaults[name]
-            p_updates[name] = _parse(name, raw, type(default))
-        elif name in FilterConfig._fields:
-            default = FilterConfig._field_defaults[name]
+        if name in FilterOptions._fields:
+            default = FilterOptions._field_defaults[name]
             if name == "spawn_box":
-                parts = raw.split(",")
+                parts = value.split(",")
                 if len(parts) != 4:
-                    raise ValueError(f"spawn_box: expected x_min,x_max,y_min,y_max, got {raw!r}")
-                c_updates[name] = tuple(_parse(name, p, float) for p in parts)
+                    raise ValueError(f"spawn_box: expected x_min,x_max,y_min,y_max, got {value!r}")
+                o_updates[name] = tuple(_parse(name, p, float) for p in parts)
             else:
-                c_updates[name] = _parse(name, raw, type(default))
+                o_updates[name] = _parse(name, value, type(default))
         else:
-            known = ", ".join(FilterParams._fields + FilterConfig._fields)
-            raise ValueError(f"{name}: unknown parameter (known: {known})")
-    params, config = params._replace(**p_updates), config._replace(**c_updates)
-    # k above the default bound raises the bound, unless k_max was given too.
-    if "k_max" not in c_updates and isinstance(params.k, int) and params.k > config.k_max:
-        config = config._replace(k_max=params.k)
-    return params, config
+            raw[name] = value
+    options = FilterOptions()._replace(**o_updates)
+    validate_options(options)
+    settings = {}
+    for typed, value in raw.items():
+        name = _ALIASES.get(typed, typed)
+        prop = _param_of(name, list(methods), options, typed)
+        settings[name] = _parse(typed, value, int if prop.integer else float)
+    k = settings.get("k")
+    if "k_max" not in o_updates and isinstance(k, int) and k > options.k_max:
+        options = options._replace(k_max=k)
+    return options, settings
 
 
-def _k_max_given(assignments: list[str]) -> bool:
-    return any(item.partition("=")[0].strip() == "k_max" for item in assignments)
-
-
-def grid_config(config, grid: dict[str, list], assignments: list[str]):
-    """The sweep's config: ``k_max`` raised to the grid's largest k (one compilation covers the
+def grid_config(options, grid: dict[str, list], assignments: list[str]):
+    """The sweep's options: ``k_max`` raised to the grid's largest k (one compilation covers the
     whole grid), unless ``--set k_max=...`` was given."""
-    if "k" in grid and not _k_max_given(assignments):
-        config = config._replace(k_max=max(config.k_max, *grid["k"]))
-    return config
+    if "k" in grid and not any(item.partition("=")[0].strip() == "k_max" for item in assignments):
+        options = options._replace(k_max=max(options.k_max, *grid["k"]))
+    return options
 
 
 def _parse(name: str, raw: str, kind: type):
@@ -86,54 +129,50 @@ def error_stats(estimates: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     return {"mean": float(err.mean()), "max": float(err.max()), "std": float(err.std())}
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def write_estimates_csv(path: str | os.PathLike, mean: np.ndarray, cov: np.ndarray) -> None:
     """Writes ``t,x,y,cov_xx,cov_xy,cov_yy`` atomically (temporary file renamed into place)."""
     path = Path(path)
     t = np.arange(mean.shape[0])
     table = np.column_stack([t, mean[:, 0], mean[:, 1], cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]])
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".csv.tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(CSV_HEADER + "\n")
-            for row in table:
-                fh.write(f"{int(row[0])}," + ",".join(f"{v:.6f}" for v in row[1:]) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    def write(fh) -> None:
+        fh.write(CSV_HEADER + "\n")
+        for row in table:
+            fh.write(f"{int(row[0])}," + ",".join(f"{v:.6f}" for v in row[1:]) + "\n")
+
+    write_atomic(path, write)
 
 
-def _settings(args):
-    """Parses and checks --set before any data is loaded or simulated."""
-    from heatpf_jax.filter import FilterConfig, FilterParams, validate_config, validate_params
+def _settings(args, methods):
+    """Parses and checks --set for every method before any data is loaded or simulated."""
+    from heatpf_jax import params as P
+    from heatpf_jax.presets import build
+    from heatpf_jax.rollout import validate_params
 
-    params, config = apply_overrides(FilterParams(), FilterConfig(), args.set or [])
-    validate_config(config)
-    validate_params(params, config)
-    return params, config
+    options, settings = parse_settings(args.set or [], methods)
+    for method in methods:
+        model, params = build(method, options)
+        validate_params(P.set_by_name(params, model.properties(), settings, skip_unknown=True), model)
+    return options, settings
 
 
-def _run_filter(seq, args, params, config):
+def _method(method: str, options, settings):
+    """The model of ``method`` and its params with every setting applied (each must be one of its parameters)."""
+    from heatpf_jax import params as P
+    from heatpf_jax.presets import build
+
+    model, params = build(method, options)
+    return model, P.set_by_name(params, model.properties(), settings)
+
+
+def _run_filter(seq, args, options, settings):
     import jax
 
-    from heatpf_jax.filter import run
+    from heatpf_jax.rollout import run
 
-    config = config._replace(method=args.method)
+    model, params = _method(args.method, options, settings)
     start = time.perf_counter()
-    result = run(jax.random.key(args.seed), seq, params, config)
+    result = run(jax.random.key(args.seed), seq, params, model)
     mean = np.asarray(result.info.mean)
     cov = np.asarray(result.info.cov)
     elapsed = time.perf_counter() - start
@@ -156,9 +195,9 @@ def _report(name: str, seq, mean, cov, elapsed: float) -> None:
 def _cmd_run(args) -> int:
     from heatpf_jax.sequence import load_sequence
 
-    params, config = _settings(args)
+    options, settings = _settings(args, [args.method])
     seq = load_sequence(args.input)
-    mean, cov, elapsed = _run_filter(seq, args, params, config)
+    mean, cov, elapsed = _run_filter(seq, args, options, settings)
     write_estimates_csv(args.output, mean, cov)
     _report(str(args.input), seq, mean, cov, elapsed)
     print(f"wrote {args.output}")
@@ -169,19 +208,19 @@ def _cmd_demo(args) -> int:
     from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table
     from heatpf_jax.sim import simulate
 
-    params, config = _settings(args)
+    variants = DEFAULT_VARIANTS[:4]
+    options, settings = _settings(args, [v.method for v in variants])
     if args.steps < 1:
         raise ValueError(f"--steps: must be >= 1, got {args.steps}")
     print("heatpf demo: simulated 'standard' scenario (static robot, 200x150 heat map every step, 10 Hz);")
     print("the short version of `heatpf eval` (one scenario, one sequence)")
     start = time.perf_counter()
     seq = simulate("standard", args.seed, num_steps=args.steps)
-    variants = DEFAULT_VARIANTS[:3]
     result = evaluate_sequences(
         "standard",
         [seq],
-        params=params,
-        config=config,
+        options=options,
+        settings=settings,
         variants=variants,
         seed=args.seed,
         burn_in=min(10, args.steps - 1),
@@ -199,7 +238,7 @@ def _cmd_eval(args) -> int:
     from heatpf_jax.sequence import load_sequence
     from heatpf_jax.sim import SCENARIOS, simulate
 
-    params, config = _settings(args)
+    options, settings = _settings(args, sorted({v.method for v in DEFAULT_VARIANTS}))
     if args.input:
         jobs = [(Path(args.input).stem, None)]
     else:
@@ -239,7 +278,8 @@ def _cmd_eval(args) -> int:
                 bar.update(1)
 
             result = evaluate_sequences(
-                name, sequences, params=params, config=config, seed=args.seed, burn_in=args.burn_in, progress=tick
+                name, sequences, options=options, settings=settings, seed=args.seed, burn_in=args.burn_in,
+                progress=tick
             )
             tables.append(format_table(result))
             bar.write(tables[-1] + "\n")
@@ -252,13 +292,13 @@ def _cmd_eval(args) -> int:
     return 0
 
 
-def parse_grid(items: list[str]) -> dict[str, list]:
-    """Parses ``--grid name=v1,v2,...`` into ``{name: [values]}`` (FilterParams fields only).
+def parse_grid(items: list[str], method: str = "heatmap") -> dict[str, list]:
+    """Parses ``--grid name=v1,v2,...`` into ``{name: [values]}`` (parameters of ``method`` only).
 
     Raises:
         ValueError: naming the field when it is unknown, static, repeated or a value does not parse.
     """
-    from heatpf_jax.filter import FilterConfig, FilterParams
+    from heatpf_jax.presets import FilterOptions
 
     grid: dict[str, list] = {}
     for item in items:
@@ -266,14 +306,13 @@ def parse_grid(items: list[str]) -> dict[str, list]:
         name = name.strip()
         if not sep or not name or not raw.strip():
             raise ValueError(f"--grid: expected name=v1,v2,..., got {item!r}")
-        if name in FilterConfig._fields:
-            raise ValueError(f"{name}: a static FilterConfig field cannot be swept in one compilation; use --set")
-        if name not in FilterParams._fields:
-            raise ValueError(f"{name}: unknown parameter (known: {', '.join(FilterParams._fields)})")
+        if name in FilterOptions._fields:
+            raise ValueError(f"{name}: a static option cannot be swept in one compilation; use --set")
+        typed, name = name, _ALIASES.get(name, name)
+        prop = _param_of(name, [method], FilterOptions(), typed)
         if name in grid:
             raise ValueError(f"{name}: given twice in --grid")
-        kind = type(FilterParams._field_defaults[name])
-        grid[name] = [_parse(name, v, kind) for v in raw.split(",")]
+        grid[name] = [_parse(name, v, int if prop.integer else float) for v in raw.split(",")]
     if not grid:
         raise ValueError("--grid: give at least one name=v1,v2,...")
     return grid
@@ -309,15 +348,16 @@ def _cmd_sweep(args) -> int:
 
     import jax
 
-    from heatpf_jax.filter import stack_params
+    from heatpf_jax import params as P
+    from heatpf_jax.rollout import stack_params, validate_params
     from heatpf_jax.sequence import load_sequence
     from heatpf_jax.sim import SCENARIOS, simulate
     from heatpf_jax.sweep import sweep
 
-    params, config = _settings(args)
-    config = config._replace(method=args.method)
-    grid = parse_grid(args.grid or [])
-    config = grid_config(config, grid, args.set or [])
+    options, settings = _settings(args, [args.method])
+    grid = parse_grid(args.grid or [], args.method)
+    options = grid_config(options, grid, args.set or [])
+    model, params = _method(args.method, options, settings)
     if (args.input is None) == (args.scenario is None):
         raise ValueError("sweep: give either INPUT.npz or --scenario NAME")
     if args.scenario is not None and args.scenario not in SCENARIOS:
@@ -326,12 +366,11 @@ def _cmd_sweep(args) -> int:
         raise ValueError("--seeds and --batch-size: must be >= 1")
     names = list(grid)
     combos = list(itertools.product(*grid.values()))
-    sets = [params._replace(**dict(zip(names, c, strict=True))) for c in combos]
+    props = model.properties()
+    sets = [P.set_by_name(params, props, dict(zip(names, c, strict=True))) for c in combos]
     # Check every set before any work.
-    from heatpf_jax.filter import validate_params
-
     for p in sets:
-        validate_params(p, config)
+        validate_params(p, model)
 
     if args.input is not None:
         sequences = [load_sequence(args.input)]
@@ -347,7 +386,8 @@ def _cmd_sweep(args) -> int:
     todo = [i for i, c in enumerate(combos) if _grid_key(c) not in done]
     # Start (or restart) the file with its header and the complete rows only: a row cut short by an
     # interruption is dropped and recomputed. Written atomically, so the finished rows are never at risk.
-    _write_atomic(out, "".join(",".join(r) + "\n" for r in [columns, *done.values()]))
+    text = "".join(",".join(r) + "\n" for r in [columns, *done.values()])
+    write_atomic(out, lambda fh: fh.write(text))
     n_dev = len(jax.local_devices())
     per_call = args.batch_size * n_dev
     print(
@@ -364,7 +404,7 @@ def _cmd_sweep(args) -> int:
             batch = stack_params([sets[i] for i in padded])
             errors = []
             for seq in sequences:
-                info = sweep(key, seq, batch, config, chunk=args.batch_size)
+                info = sweep(key, seq, batch, model, chunk=args.batch_size)
                 est = np.asarray(info.mean, np.float64)[: len(ids)]
                 errors.append(np.linalg.norm(est - seq.ground_truth[None], axis=-1)[:, burn_in:])
             err = np.concatenate(errors, axis=1)
@@ -407,14 +447,18 @@ def _build_parser() -> argparse.ArgumentParser:
             "--set",
             action="append",
             metavar="NAME=VALUE",
-            help="override a FilterParams or FilterConfig field (repeatable), e.g. --set k=3",
+            help="a parameter (dotted, e.g. motion.diffusion_std, or its last part: diffusion_std) or a static "
+            "option (num_particles, resampler, ...), repeatable, e.g. --set k=3",
         )
-        p.add_argument("--method", choices=METHODS, default="heatmap", help="filter method (default heatmap)")
+
+    def method(p):
+        p.add_argument("--method", choices=_method_names(), default="heatmap", help="filter method (default heatmap)")
 
     p_run = sub.add_parser("run", help="run the filter on a version-1 sequence file")
     p_run.add_argument("input", help="sequence file (.npz, version 1)")
     p_run.add_argument("--output", "-o", required=True, help="CSV with t,x,y,cov_xx,cov_xy,cov_yy")
     common(p_run)
+    method(p_run)
     p_run.set_defaults(func=_cmd_run)
 
     p_eval = sub.add_parser("eval", help="the paper's comparison (Table I, Fig. 4, Fig. 6) on every scenario")
@@ -431,7 +475,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_sweep = sub.add_parser("sweep", help="run the cartesian product of parameter grids, ranked by error")
     p_sweep.add_argument("input", nargs="?", help="sequence file (.npz with ground_truth); or use --scenario")
     p_sweep.add_argument("--scenario", help="a simulated scenario instead of a file")
-    p_sweep.add_argument("--grid", action="append", metavar="NAME=V1,V2,...", help="a FilterParams grid (repeatable)")
+    p_sweep.add_argument("--grid", action="append", metavar="NAME=V1,V2,...", help="a parameter grid (repeatable)")
     p_sweep.add_argument("--output", "-o", default="sweep.csv", help="results CSV; an existing one is resumed")
     p_sweep.add_argument("--seeds", type=int, default=1, help="scenario sequences per set (default 1)")
     p_sweep.add_argument("--steps", type=int, default=None, help="steps per scenario sequence (default 300)")
@@ -439,6 +483,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_sweep.add_argument("--burn-in", type=int, default=10, help="first steps left out of the errors (default 10)")
     p_sweep.add_argument("--top", type=int, default=5, help="best sets printed (default 5)")
     common(p_sweep)
+    method(p_sweep)
     p_sweep.set_defaults(func=_cmd_sweep)
 
     p_demo = sub.add_parser("demo", help="a short evaluation on a built-in simulated sequence")

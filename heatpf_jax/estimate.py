@@ -9,12 +9,22 @@ weighted mean over all particles is returned too.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Float
+from jaxtyping import Array, ArrayLike, Float, Int
 
-__all__ = ["Estimate", "sorted_top_fraction_estimate", "top_fraction_estimate", "weighted_mean_cov"]
+from heatpf_jax.params import unit_interval
+
+__all__ = [
+    "Estimate",
+    "TopFraction",
+    "TopFractionParams",
+    "sorted_top_fraction_estimate",
+    "top_fraction_estimate",
+    "weighted_mean_cov",
+]
 
 
 class Estimate(NamedTuple):
@@ -88,3 +98,31 @@ def top_fraction_estimate(
     weights = jnp.asarray(weights)
     order = jnp.argsort(-weights, stable=True)
     return sorted_top_fraction_estimate(particles[order], weights[order], top_fraction)
+
+
+class TopFractionParams(NamedTuple):
+    """Numbers of :class:`TopFraction`.
+
+    Attributes:
+        top_fraction: share of best particles averaged for the output (III-F); 95 % in the paper.
+    """
+
+    top_fraction: float = 0.95
+
+
+@dataclass(frozen=True)
+class TopFraction:
+    """The paper's output (III-F): weighted mean and covariance of the best ``top_fraction`` of the particles.
+
+    Uses the step's one sort of the particles by decreasing weight (``order``).
+    """
+
+    def default_params(self) -> TopFractionParams:
+        return TopFractionParams()
+
+    def properties(self) -> TopFractionParams:
+        # A count of particles: frozen.
+        return TopFractionParams(top_fraction=unit_interval(low_closed=False, trainable=False))
+
+    def estimate(self, particles, weights: Float[Array, " n"], order: Int[Array, " n"], params) -> Estimate:
+        return sorted_top_fraction_estimate(particles.xy[order], weights[order], params.top_fraction)

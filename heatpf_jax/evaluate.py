@@ -1,9 +1,9 @@
 """The paper's comparison (Table I, Fig. 4, Fig. 6) on simulated scenarios or a user's recording.
 
-Every method runs through the same :func:`heatpf_jax.run`, with the same
-parameters except where a method differs (``FilterConfig.method``), on the same
-sequences. Seeds of one scenario share shapes, so each method runs all seeds
-in one ``vmap`` and compiles once.
+Every method is a named preset (:mod:`heatpf_jax.presets`) run through the same
+:func:`heatpf_jax.run` on the same sequences; settings given by name apply to every
+method that has a parameter of that name. Seeds of one scenario share shapes, so
+each method runs all seeds in one ``vmap`` and compiles once.
 """
 
 from __future__ import annotations
@@ -15,7 +15,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from heatpf_jax.filter import FilterConfig, FilterParams, run
+from heatpf_jax import params as P
+from heatpf_jax.presets import FilterOptions, build
+from heatpf_jax.rollout import run
 from heatpf_jax.sequence import Sequence
 
 __all__ = [
@@ -31,7 +33,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Variant:
-    """A named way to run the filter: a method plus parameter changes."""
+    """A named way to run a method (a name in ``heatpf_jax.presets.METHODS``) with parameter changes by name."""
 
     name: str
     method: str
@@ -42,6 +44,7 @@ DEFAULT_VARIANTS = (
     Variant("heatmap", "heatmap"),
     Variant("conventional", "conventional"),
     Variant("kalman", "kalman"),
+    Variant("bitbots2018", "bitbots2018"),
     # Aging ablations (III-C): measurements that never age, and measurements that die at once.
     Variant("heatmap, no aging (v=0, l=0)", "heatmap", {"aging": 0.0, "min_weight": 0.0}),
     Variant("heatmap, v=1 (no memory)", "heatmap", {"aging": 1.0}),
@@ -90,8 +93,8 @@ def evaluate_sequences(
     name: str,
     sequences: list[Sequence],
     *,
-    params: FilterParams,
-    config: FilterConfig,
+    options: FilterOptions = FilterOptions(),
+    settings: dict | None = None,
     variants: Iterable[Variant] = DEFAULT_VARIANTS,
     seed: int = 0,
     burn_in: int = 10,
@@ -102,8 +105,9 @@ def evaluate_sequences(
     Args:
         name: scenario name, for the table.
         sequences: sequences of equal shapes, each with ``ground_truth``.
-        params: the shared parameters; each variant applies its overrides on top.
-        config: the shared static configuration; each variant sets its method.
+        options: the static choices shared by every method (each preset takes those that apply).
+        settings: ``{name: value}`` parameters shared by every method that has them; each
+            variant applies its own overrides on top.
         variants: what to run.
         seed: PRNG seed; sequence i uses key ``fold_in(key(seed), i)`` for every variant.
         burn_in: steps excluded from the statistics (convergence from the initial prior).
@@ -123,9 +127,10 @@ def evaluate_sequences(
     keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(np.arange(len(sequences)))
     results = []
     for variant in variants:
-        p = params._replace(**variant.overrides)
-        c = config._replace(method=variant.method)
-        out = jax.vmap(lambda k, s, p=p, c=c: run(k, s, p, c).info.mean)(keys, batch)
+        model, p = build(variant.method, options)
+        p = P.set_by_name(p, model.properties(), settings or {}, skip_unknown=True)
+        p = P.set_by_name(p, model.properties(), variant.overrides)
+        out = jax.vmap(lambda k, s, p=p, m=model: run(k, s, p, m).info.mean)(keys, batch)
         est = np.asarray(out, np.float64)
         if not np.all(np.isfinite(est)):
             raise RuntimeError(f"{variant.name}: non-finite estimate on scenario {name!r}; please report this")
@@ -168,7 +173,7 @@ def plot_scenario(result: ScenarioResult, directory: str | Path) -> list[Path]:
         raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"') from None
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    colours = {"heatmap": "tab:red", "conventional": "tab:blue", "kalman": "tab:purple"}
+    colours = {"heatmap": "tab:red", "conventional": "tab:blue", "kalman": "tab:purple", "bitbots2018": "tab:orange"}
     shown = [m for m in result.methods if m.variant.name in colours]
     b = result.burn_in
 

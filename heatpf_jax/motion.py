@@ -8,11 +8,27 @@ coordinates ``R(dtheta)^T (p - (dx, dy))`` at t. Noise is reparameterised
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
-__all__ = ["apply_odometry", "diffuse", "move_and_diffuse", "move_particles"]
+from heatpf_jax.numerics import safe_sqrt
+from heatpf_jax.params import nonnegative
+
+__all__ = [
+    "DiffusionOnly",
+    "DiffusionParams",
+    "Particles",
+    "RandomWalk",
+    "RandomWalkParams",
+    "apply_odometry",
+    "diffuse",
+    "move_and_diffuse",
+    "move_particles",
+]
 
 
 def apply_odometry(points: Float[ArrayLike, "n 2"], odometry: Float[ArrayLike, "... 3"]) -> Float[Array, "n 2"]:
@@ -34,11 +50,6 @@ def apply_odometry(points: Float[ArrayLike, "n 2"], odometry: Float[ArrayLike, "
     qx = points[:, 0] - dx
     qy = points[:, 1] - dy
     return jnp.stack([c * qx + s * qy, -s * qx + c * qy], axis=-1)
-
-
-def _safe_sqrt(x: Float[Array, ""]) -> Float[Array, ""]:
-    """sqrt with a zero (not infinite) gradient at 0, so reparameterised noise stays differentiable."""
-    return jnp.where(x > 0.0, jnp.sqrt(jnp.where(x > 0.0, x, 1.0)), 0.0)
 
 
 def move_particles(
@@ -66,7 +77,7 @@ def move_particles(
     """
     particles = jnp.asarray(particles)
     odometry = jnp.asarray(odometry, particles.dtype)
-    dist = _safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
+    dist = safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
     scale = jnp.stack([trans_noise * dist, trans_noise * dist, rot_noise * jnp.abs(odometry[2])])
     noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
     return apply_odometry(particles, odometry[None, :] + noise * scale[None, :])
@@ -111,9 +122,90 @@ def move_and_diffuse(
     particles = jnp.asarray(particles)
     odometry = jnp.asarray(odometry, particles.dtype)
     sq = odometry[0] ** 2 + odometry[1] ** 2
-    std = _safe_sqrt(trans_noise * trans_noise * sq + diffusion_std * diffusion_std)
+    std = safe_sqrt(trans_noise * trans_noise * sq + diffusion_std * diffusion_std)
     noise = jax.random.normal(key, (particles.shape[0], 3), particles.dtype)
     theta = odometry[2] + rot_noise * jnp.abs(odometry[2]) * noise[:, 2]
     shift = jnp.broadcast_to(odometry[None, :2], (particles.shape[0], 2))
     moved = apply_odometry(particles, jnp.concatenate([shift, theta[:, None]], axis=1))
     return moved + std * noise[:, :2]
+
+
+class Particles(NamedTuple):
+    """Particles of a position-only motion model.
+
+    Attributes:
+        xy: ``float32 [N, 2]`` positions in the current base frame.
+    """
+
+    xy: Float[Array, "n 2"]
+
+
+class RandomWalkParams(NamedTuple):
+    """Numbers of :class:`RandomWalk`.
+
+    Attributes:
+        diffusion_std: Gaussian diffusion per filter step, metres (III-D).
+        odom_trans_noise: odometry translation noise, a fraction of the distance moved.
+        odom_rot_noise: odometry rotation noise, a fraction of the angle turned.
+    """
+
+    diffusion_std: float = 0.2
+    odom_trans_noise: float = 0.1
+    odom_rot_noise: float = 0.1
+
+
+@dataclass(frozen=True)
+class RandomWalk:
+    """The paper's movement model (III-D): odometry with motion-scaled noise, then Gaussian diffusion.
+
+    The particles carry positions only (:class:`Particles`); both noises come from one draw
+    (:func:`move_and_diffuse`).
+    """
+
+    def default_params(self) -> RandomWalkParams:
+        return RandomWalkParams()
+
+    def properties(self) -> RandomWalkParams:
+        return RandomWalkParams(nonnegative(), nonnegative(), nonnegative())
+
+    def spawn(self, key: PRNGKeyArray, xy: Float[Array, "n 2"], params: RandomWalkParams) -> Particles:
+        del key, params
+        return Particles(xy=xy)
+
+    def predict(self, key: PRNGKeyArray, particles: Particles, inputs, params: RandomWalkParams) -> Particles:
+        xy = move_and_diffuse(
+            key, particles.xy, inputs.odometry, params.odom_trans_noise, params.odom_rot_noise, params.diffusion_std
+        )
+        return particles._replace(xy=xy)
+
+
+class DiffusionParams(NamedTuple):
+    """Numbers of :class:`DiffusionOnly`.
+
+    Attributes:
+        diffusion_std: Gaussian diffusion per filter step, metres.
+    """
+
+    diffusion_std: float = 0.1
+
+
+@dataclass(frozen=True)
+class DiffusionOnly:
+    """Gaussian diffusion without odometry: the particles stay where they were in the robot's frame.
+
+    The original team's 2018 node moved nothing by odometry (:func:`heatpf_jax.presets.bitbots2018`).
+    """
+
+    def default_params(self) -> DiffusionParams:
+        return DiffusionParams()
+
+    def properties(self) -> DiffusionParams:
+        return DiffusionParams(nonnegative())
+
+    def spawn(self, key: PRNGKeyArray, xy: Float[Array, "n 2"], params: DiffusionParams) -> Particles:
+        del key, params
+        return Particles(xy=xy)
+
+    def predict(self, key: PRNGKeyArray, particles: Particles, inputs, params: DiffusionParams) -> Particles:
+        del inputs
+        return particles._replace(xy=diffuse(key, particles.xy, params.diffusion_std))

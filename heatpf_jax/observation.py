@@ -14,17 +14,28 @@ which lets the filter be checked against a Kalman posterior.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import NamedTuple
+
 import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from heatpf_jax.knn import _static_k_max, k_nearest_blocked
 from heatpf_jax.measurements import Measurements
+from heatpf_jax.numerics import safe_log
+from heatpf_jax.params import integer, positive
 
 __all__ = [
     "AUTO_BLOCKED_MIN_SIZE",
     "DEFAULT_MIN_DISTANCE",
     "KNN_METHODS",
+    "FloorParams",
+    "Floored",
+    "GaussianKernel",
+    "GaussianKernelParams",
+    "InverseDistance",
+    "InverseDistanceParams",
     "gaussian_particle_weights",
     "k_nearest",
     "particle_weights",
@@ -132,3 +143,132 @@ def gaussian_particle_weights(
     """
     sq, w, _ = k_nearest(particles, measurements, k, k_max=k_max, method=method)
     return _sum_or_uniform(w * jnp.exp(-0.5 * sq / jnp.square(std)), measurements)
+
+
+@dataclass(frozen=True)
+class _KNearestModel:
+    """What the k-nearest observation models share: the static search and the ``k`` constraint.
+
+    Attributes:
+        k_max: static upper bound on the traced ``k`` (the search's arrays are sized for it).
+        knn: the exact k-nearest search, ``"auto"``, ``"blocked"`` or ``"dense"`` (see :func:`k_nearest`).
+    """
+
+    k_max: int = 10
+    knn: str = "auto"
+
+    def validate(self) -> None:
+        if not isinstance(self.k_max, int) or isinstance(self.k_max, bool) or self.k_max < 1:
+            raise ValueError(f"k_max: must be a positive integer, got {self.k_max!r}")
+        if self.knn not in KNN_METHODS:
+            raise ValueError(f"knn: must be one of {list(KNN_METHODS)}, got {self.knn!r}")
+
+    def _k(self):
+        return integer(1, self.k_max)
+
+
+class InverseDistanceParams(NamedTuple):
+    """Numbers of :class:`InverseDistance`.
+
+    Attributes:
+        k: neighbours per particle in eq. (1), ``1 <= k <= k_max``.
+        min_distance: distance floor of eq. (1), metres.
+    """
+
+    k: int = 1
+    min_distance: float = DEFAULT_MIN_DISTANCE
+
+
+@dataclass(frozen=True)
+class InverseDistance(_KNearestModel):
+    """Eq. (1): ``log sum_{j in C_i} w(m_j) / max(delta_ij, min_distance)`` over the k nearest.
+
+    Eq. (1) is a score, not a normalised density: it is the likelihood up to a factor shared by
+    all particles, which resampling ignores, but its scale (and so the filter's log normalising
+    constant) depends on the heat map's activations and pixel count.
+
+    Attributes:
+        k_max: static upper bound on the traced ``k`` (the search's arrays are sized for it).
+        knn: the exact k-nearest search, ``"auto"``, ``"blocked"`` or ``"dense"`` (see :func:`k_nearest`).
+    """
+
+    def default_params(self) -> InverseDistanceParams:
+        return InverseDistanceParams()
+
+    def properties(self) -> InverseDistanceParams:
+        return InverseDistanceParams(k=self._k(), min_distance=positive())
+
+    def log_likelihood(
+        self, xy: Float[Array, "n 2"], buffer: Measurements, params: InverseDistanceParams
+    ) -> Float[Array, " n"]:
+        w = particle_weights(xy, buffer, params.k, k_max=self.k_max, min_distance=params.min_distance, method=self.knn)
+        return safe_log(w)
+
+
+class GaussianKernelParams(NamedTuple):
+    """Numbers of :class:`GaussianKernel`.
+
+    Attributes:
+        k: neighbours per particle, ``1 <= k <= k_max``.
+        obs_std: kernel std, metres.
+    """
+
+    k: int = 1
+    obs_std: float = 0.2
+
+
+@dataclass(frozen=True)
+class GaussianKernel(_KNearestModel):
+    """``log sum_{j in C_i} w(m_j) exp(-delta_ij^2 / (2 obs_std^2))`` over the k nearest.
+
+    With one measurement and k = 1 this is the exact Gaussian likelihood up to a constant, which
+    lets the filter be checked against a Kalman posterior.
+    """
+
+    def default_params(self) -> GaussianKernelParams:
+        return GaussianKernelParams()
+
+    def properties(self) -> GaussianKernelParams:
+        return GaussianKernelParams(k=self._k(), obs_std=positive())
+
+    def log_likelihood(
+        self, xy: Float[Array, "n 2"], buffer: Measurements, params: GaussianKernelParams
+    ) -> Float[Array, " n"]:
+        w = gaussian_particle_weights(xy, buffer, params.k, std=params.obs_std, k_max=self.k_max, method=self.knn)
+        return safe_log(w)
+
+
+class FloorParams(NamedTuple):
+    """Numbers of :class:`Floored`: the base model's params and the floor.
+
+    Attributes:
+        base: the wrapped model's params.
+        weight_floor: lowest likelihood a particle gets.
+    """
+
+    base: NamedTuple
+    weight_floor: float = 0.001
+
+
+@dataclass(frozen=True)
+class Floored:
+    """Any observation model with each particle's likelihood floored: ``max(L_i, weight_floor)``.
+
+    The original team's 2018 node floors every particle's weight at 0.001, so that one step with a
+    false detection cannot wipe out the particles on the ball.
+    """
+
+    base: InverseDistance | GaussianKernel
+
+    def default_params(self) -> FloorParams:
+        return FloorParams(base=self.base.default_params())
+
+    def properties(self) -> FloorParams:
+        return FloorParams(base=self.base.properties(), weight_floor=positive(trainable=False))
+
+    def validate(self) -> None:
+        if hasattr(self.base, "validate"):
+            self.base.validate()
+
+    def log_likelihood(self, xy: Float[Array, "n 2"], buffer: Measurements, params: FloorParams) -> Float[Array, " n"]:
+        return jnp.maximum(self.base.log_likelihood(xy, buffer, params.base), jnp.log(params.weight_floor))

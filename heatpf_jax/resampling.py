@@ -1,4 +1,6 @@
-"""Resamplers with one signature ``(key, weights, num_samples) -> indices`` (III-E).
+"""Resampling (III-E): index resamplers and the resampling strategy of the filter step.
+
+Resamplers share one signature ``(key, weights, num_samples) -> indices``.
 
 All are built on a normalised cumulative sum and ``searchsorted``; the cumulative
 sum is divided by its last element and the indices clipped, so float32 rounding
@@ -8,19 +10,31 @@ Every resampler returns **non-decreasing** indices: the copies of one particle a
 contiguous. The filter step relies on it: it resamples particles sorted by
 decreasing weight, so the last slots hold the copies with the lowest support and
 become the explorers (III-E) without a second sort.
+
+:class:`ESSResampling` is the filter's resampling piece: it resamples when the effective sample
+size falls below a share of N and returns a :class:`Resampled`: the ancestors of every slot and
+each slot's support rank, from which the injectors take the slots they refill.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jax import lax
-from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
+
+from heatpf_jax.params import unit_interval
 
 __all__ = [
     "RESAMPLERS",
+    "ESSParams",
+    "ESSResampling",
+    "Resampled",
     "effective_sample_size",
     "multinomial",
     "residual",
@@ -111,3 +125,76 @@ RESAMPLERS: dict[str, Callable[[PRNGKeyArray, Array, int], Array]] = {
     "multinomial": multinomial,
     "residual": residual,
 }
+
+
+class Resampled(NamedTuple):
+    """What a resampling strategy returns.
+
+    Attributes:
+        ancestors: ``int32 [N]``: slot i now holds a copy of particle ``ancestors[i]``.
+        log_weights: ``float32 [N]`` normalised log weights after resampling.
+        rank: ``int32 [N]`` each slot's support rank (0: the most support). Injectors refill the
+            slots of highest rank (lowest support) first.
+        resampled: ``bool []`` whether this step resampled.
+        ess: ``float32 []`` effective sample size before resampling.
+    """
+
+    ancestors: Int[Array, " n"]
+    log_weights: Float[Array, " n"]
+    rank: Int[Array, " n"]
+    resampled: Bool[Array, ""]
+    ess: Float[Array, ""]
+
+
+class ESSParams(NamedTuple):
+    """Numbers of :class:`ESSResampling`.
+
+    Attributes:
+        resample_threshold: resample when ESS < resample_threshold * N (1.0: every step, as SIR,
+            unless the weights are uniform).
+    """
+
+    resample_threshold: float = 1.0
+
+
+@dataclass(frozen=True)
+class ESSResampling:
+    """Resamples with ``resampler`` when the effective sample size falls below ``resample_threshold * N``.
+
+    The particles are resampled in the step's order of decreasing weight; since every resampler
+    returns non-decreasing indices, slot i of the result has support rank i. A step that does not
+    resample keeps every particle in its slot, ranked by its weight.
+
+    Attributes:
+        resampler: an index resampler ``(key, weights, num_samples) -> indices`` (see ``RESAMPLERS``).
+    """
+
+    resampler: Callable[[PRNGKeyArray, Array, int], Array] = systematic
+
+    def default_params(self) -> ESSParams:
+        return ESSParams()
+
+    def properties(self) -> ESSParams:
+        return ESSParams(resample_threshold=unit_interval(trainable=False))
+
+    def validate(self) -> None:
+        if not callable(self.resampler):
+            raise ValueError(f"resampler: must be a function (key, weights, num) -> indices, got {self.resampler!r}")
+
+    def resample(
+        self, key: PRNGKeyArray, log_weights: Float[Array, " n"], order: Int[Array, " n"], params: ESSParams
+    ) -> Resampled:
+        n = log_weights.shape[0]
+        weights = jnp.exp(log_weights)
+        ess = effective_sample_size(weights)
+        resampled = ess < params.resample_threshold * n
+        idx = self.resampler(key, weights[order], n)
+        slots = jnp.arange(n, dtype=jnp.int32)
+        inverse = jnp.zeros((n,), jnp.int32).at[order].set(slots, unique_indices=True)
+        return Resampled(
+            ancestors=jnp.where(resampled, order[idx], slots),
+            log_weights=jnp.where(resampled, jnp.full_like(log_weights, -math.log(n)), log_weights),
+            rank=jnp.where(resampled, slots, inverse),
+            resampled=resampled,
+            ess=ess,
+        )

@@ -19,12 +19,13 @@ atomically (a temporary file renamed into place), so nothing is half-written.
 from __future__ import annotations
 
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+
+from heatpf_jax.files import write_atomic
 
 __all__ = ["FORMAT_VERSION", "Sequence", "SequenceError", "load_sequence", "save_sequence", "validate_sequence"]
 
@@ -186,12 +187,4 @@ def save_sequence(path: str | os.PathLike, seq: Sequence) -> None:
     path = Path(path)
     arrays = {k: v for k, v in seq._asdict().items() if v is not None}
     arrays["format_version"] = np.asarray(FORMAT_VERSION, np.int64)
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".npz.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, lambda fh: np.savez_compressed(fh, **arrays), binary=True)

@@ -10,13 +10,14 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 import heatpf_jax as hp  # noqa: E402
 from heatpf_jax.sim import simulate_standard  # noqa: E402
 
-# One small configuration shared by the filter-level tests, so `run` compiles once per shape.
-SMALL_CONFIG = hp.FilterConfig(num_particles=128, max_measurements=128, k_max=8)
+# One small filter shared by the filter-level tests, so `run` compiles once per shape.
+SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8)
+SMALL_FILTER = hp.heatmap_filter(SMALL_OPTIONS)
 
 
 @pytest.fixture(scope="session")
-def small_config() -> hp.FilterConfig:
-    return SMALL_CONFIG
+def small_filter() -> hp.Filter:
+    return SMALL_FILTER
 
 
 @pytest.fixture(scope="session")
@@ -28,3 +29,18 @@ def small_sequence() -> hp.Sequence:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+def step_inputs(seq: hp.Sequence, t: int, *, odometry=(0.0, 0.0, 0.0), has_heatmap: bool | None = None):
+    """Step t of ``seq`` as one step's ``StepInputs`` (the given odometry; the file's has_heatmap unless given)."""
+    import jax.numpy as jnp
+
+    return hp.StepInputs(
+        heatmap=jnp.asarray(seq.heatmaps[t], jnp.float32),
+        has_heatmap=jnp.asarray(seq.has_heatmap[t] if has_heatmap is None else has_heatmap),
+        cam_to_base=jnp.asarray(seq.cam_to_base[t], jnp.float32),
+        odometry=jnp.asarray(odometry, jnp.float32),
+        intrinsics=jnp.asarray(seq.intrinsics, jnp.float32),
+        plane_height=jnp.asarray(seq.ball_radius, jnp.float32),
+        dt=jnp.asarray(seq.dt, jnp.float32),
+    )

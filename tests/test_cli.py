@@ -4,11 +4,12 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
-from heatpf_jax.cli import CSV_HEADER, apply_overrides, error_stats, grid_config, main
+from heatpf_jax.cli import CSV_HEADER, error_stats, grid_config, main, parse_settings
+from heatpf_jax.params import set_by_name
 from heatpf_jax.sim import simulate_standard
-from tests.conftest import SMALL_CONFIG
+from tests.conftest import SMALL_OPTIONS
 
-SMALL_SET = [f"{name}={getattr(SMALL_CONFIG, name)}" for name in ("num_particles", "max_measurements", "k_max")]
+SMALL_SET = [f"{name}={getattr(SMALL_OPTIONS, name)}" for name in ("num_particles", "max_measurements", "k_max")]
 
 
 @pytest.fixture(scope="module")
@@ -70,8 +71,8 @@ def test_existing_output_survives_a_failed_run(tmp_path, seq_file):
 
 @pytest.mark.parametrize(
     "assignment, field",
-    [("k=0", "k"), ("nope=1", "nope"), ("k=2.5", "k"), ("threshold=abc", "threshold"), ("resampler=bogus", "resampler"),
-     ("spawn_box=1,2,3", "spawn_box"), ("top_fraction=0", "top_fraction")],
+    [("k=0", "observation.k"), ("nope=1", "nope"), ("k=2.5", "k"), ("threshold=abc", "threshold"),
+     ("resampler=bogus", "resampler"), ("spawn_box=1,2,3", "spawn_box"), ("top_fraction=0", "estimator.top_fraction")],
 )
 def test_bad_overrides_name_the_field(tmp_path, seq_file, capsys, assignment, field):
     path, _ = seq_file
@@ -79,28 +80,38 @@ def test_bad_overrides_name_the_field(tmp_path, seq_file, capsys, assignment, fi
     assert capsys.readouterr().err.startswith(f"heatpf: error: {field}")
 
 
-def test_overrides_reach_params_and_config():
-    params, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(),
-                                     ["k=7", "aging=0.2", "resampler=residual", "spawn_box=-1,1,-2,2"])
-    assert params.k == 7 and isinstance(params.k, int) and params.aging == 0.2
-    assert config.resampler == "residual" and config.spawn_box == (-1.0, 1.0, -2.0, 2.0)
+def test_overrides_reach_params_and_options():
+    options, settings = parse_settings(["k=7", "aging=0.2", "resampler=residual", "spawn_box=-1,1,-2,2"])
+    assert settings["k"] == 7 and isinstance(settings["k"], int) and settings["aging"] == 0.2
+    assert options.resampler == "residual" and options.spawn_box == (-1.0, 1.0, -2.0, 2.0)
+    # The settings reach the method's params and the options its model.
+    model, params = hp.build("heatmap", options)
+    params = set_by_name(params, model.properties(), settings)
+    assert params.observation.k == 7 and params.buffer.aging == 0.2
+    assert model.resampling.resampler is hp.RESAMPLERS["residual"]
+    assert model.initial.box == (-1.0, 1.0, -2.0, 2.0)
+    # The Kalman baseline's names of earlier versions are still accepted.
+    _, settings = parse_settings(["kalman_accel_std=2", "kalman_meas_std=0.2"], methods=("kalman",))
+    assert settings == {"accel_std": 2.0, "meas_std": 0.2}
 
 
 def test_k_above_the_default_bound_raises_k_max_unless_given():
-    default = hp.FilterConfig().k_max
-    _, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), [f"k={default + 2}"])
-    assert config.k_max == default + 2
-    _, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), ["k=2"])
-    assert config.k_max == default
+    default = hp.FilterOptions().k_max
+    options, _ = parse_settings([f"k={default + 2}"])
+    assert options.k_max == default + 2
+    options, _ = parse_settings(["k=2"])
+    assert options.k_max == default
     # An explicit k_max stays, and the out-of-range k is then refused, naming the field.
-    params, config = apply_overrides(hp.FilterParams(), hp.FilterConfig(), [f"k={default + 2}", "k_max=4"])
-    assert config.k_max == 4
-    with pytest.raises(ValueError, match="^k: "):
-        hp.validate_params(params, config)
+    options, settings = parse_settings([f"k={default + 2}", "k_max=4"])
+    assert options.k_max == 4
+    model = hp.heatmap_filter(options)
+    params = set_by_name(model.default_params(), model.properties(), settings)
+    with pytest.raises(ValueError, match=r"^observation\.k: "):
+        hp.validate_params(params, model)
     # A sweep's k grid raises it the same way.
-    assert grid_config(hp.FilterConfig(), {"k": [1, default + 5]}, []).k_max == default + 5
-    assert grid_config(hp.FilterConfig(), {"k": [1, 2]}, []).k_max == default
-    assert grid_config(hp.FilterConfig(k_max=4), {"k": [1, 9]}, ["k_max=4"]).k_max == 4
+    assert grid_config(hp.FilterOptions(), {"k": [1, default + 5]}, []).k_max == default + 5
+    assert grid_config(hp.FilterOptions(), {"k": [1, 2]}, []).k_max == default
+    assert grid_config(hp.FilterOptions(k_max=4), {"k": [1, 9]}, ["k_max=4"]).k_max == 4
 
 
 def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys):
@@ -109,7 +120,7 @@ def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys):
     assert main(["eval", "--scenario", "split", "--seeds", "2", "--steps", "25", "--plot", str(plots), *small]) == 0
     out = capsys.readouterr().out
     assert "scenario split: 2 sequence(s) x 25 steps" in out
-    for method in ("heatmap", "conventional", "kalman", "no aging"):
+    for method in ("heatmap", "conventional", "kalman", "bitbots2018", "no aging"):
         assert method in out
     conventional = next(line for line in out.splitlines() if line.startswith("conventional"))
     assert conventional.split()[4] == "1.000"  # its ratio to itself

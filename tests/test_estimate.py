@@ -145,3 +145,17 @@ def test_sorted_top_fraction_estimate_matches_reference_on_sorted_input(rng):
             np.testing.assert_allclose(got.mean, mean, rtol=1e-4, atol=1e-6)
             np.testing.assert_allclose(got.cov, cov, rtol=1e-4, atol=1e-6)
             np.testing.assert_allclose(got.weighted_mean, wmean, rtol=1e-4, atol=1e-6)
+
+
+def test_top_fraction_piece_uses_the_shared_order(rng):
+    from heatpf_jax.motion import Particles
+    from heatpf_jax.numerics import order_by_weight
+
+    xy = rng.normal(size=(60, 2)).astype(np.float32)
+    w = rng.random(60).astype(np.float32)
+    w /= w.sum()
+    est = hp.TopFraction().estimate(Particles(jnp.asarray(xy)), jnp.asarray(w), order_by_weight(jnp.asarray(w)),
+                                    hp.TopFractionParams(0.5))
+    keep = np.argsort(-w, kind="stable")[:30]
+    ref = np.average(xy[keep], axis=0, weights=w[keep])
+    np.testing.assert_allclose(np.asarray(est.mean), ref, rtol=1e-5, atol=1e-6)

@@ -8,9 +8,9 @@
 * Compilation counts, determinism, jit / no-jit, vmap over parameters, gradients
   (against central finite differences with common random numbers) and validation.
 
-To keep compile time low, filter runs share a few configurations and shapes:
-``SMALL_CONFIG`` with the 20-step 37 x 50 ``small_sequence`` shape, and one
-Kalman configuration with one 40-step 3 x 3 sequence.
+To keep compile time low, filter runs share a few filters and shapes:
+``SMALL_FILTER`` with the 20-step 37 x 50 ``small_sequence`` shape, and one
+Kalman-toy filter with one 40-step 3 x 3 sequence.
 """
 
 from __future__ import annotations
@@ -23,8 +23,11 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
-import heatpf_jax.filter as hpf
+import heatpf_jax.rollout as rollout
+from heatpf_jax.params import set_by_name
+from heatpf_jax.presets import validate_options
 from heatpf_jax.sim import render_heatmap
+from tests.conftest import SMALL_FILTER, SMALL_OPTIONS
 
 # --- Helpers --------------------------------------------------------------------------------------------------------
 
@@ -43,6 +46,11 @@ def _first_steps(seq: hp.Sequence, num: int) -> hp.Sequence:
     return seq._replace(**{k: None if getattr(seq, k) is None else getattr(seq, k)[:num] for k in per_step})
 
 
+def _set(params: hp.FilterParams, model: hp.Filter, **names) -> hp.FilterParams:
+    """``params`` with some values replaced by name (values may be traced)."""
+    return set_by_name(params, model.properties(), names)
+
+
 def _error(info_mean, truth) -> np.ndarray:
     return np.linalg.norm(np.asarray(info_mean, np.float64) - truth, axis=-1)
 
@@ -53,10 +61,12 @@ KF_STEPS = 40
 KF_Q = 0.2  # random-walk (diffusion) std per step
 KF_R = 0.3  # measurement std
 KF_RUNS = 32
-KF_CONFIG = hp.FilterConfig(
-    num_particles=1000, max_measurements=16, k_max=1, observation="gaussian", spawn_box=(-4.0, 4.0, -4.0, 4.0)
+KF_MODEL = hp.heatmap_filter(
+    hp.FilterOptions(
+        num_particles=1000, max_measurements=16, k_max=1, observation="gaussian", spawn_box=(-4.0, 4.0, -4.0, 4.0)
+    )
 )
-KF_PARAMS = hp.FilterParams(
+KF_PARAMS = KF_MODEL.make_params(
     k=1,
     threshold=0.5,
     obs_std=KF_R,
@@ -109,16 +119,16 @@ def kalman_toy():
     return seq, kf_mean, kf_var
 
 
-@functools.partial(jax.jit, static_argnames="config")
-def _batched_run(keys, sequence, params, config):
+@functools.partial(jax.jit, static_argnames="model")
+def _batched_run(keys, sequence, params, model):
     """``run`` vmapped over keys and parameter sets together (one compilation for the Kalman tests)."""
-    return jax.vmap(lambda k, p: hp.run(k, sequence, p, config))(keys, params)
+    return jax.vmap(lambda k, p: hp.run(k, sequence, p, model))(keys, params)
 
 
 def test_linear_gaussian_matches_kalman_posterior(kalman_toy):
     seq, kf_mean, kf_var = kalman_toy
     keys = jax.random.split(jax.random.key(2024), KF_RUNS)
-    res = _batched_run(keys, seq, hp.stack_params([KF_PARAMS] * KF_RUNS), KF_CONFIG)
+    res = _batched_run(keys, seq, hp.stack_params([KF_PARAMS] * KF_RUNS), KF_MODEL)
     info = res.info
     assert np.all(np.asarray(info.num_valid) == 1)  # exactly one measurement per step
     late = slice(10, None)  # the uniform initial cloud has washed out by then
@@ -153,14 +163,14 @@ def test_gradient_matches_finite_difference(kalman_toy):
     """
     seq, _, _ = kalman_toy
     truth = jnp.asarray(seq.ground_truth[:12], jnp.float32)
-    params = KF_PARAMS._replace(resample_threshold=0.0)
+    params = _set(KF_PARAMS, KF_MODEL, resample_threshold=0.0)
     key = jax.random.key(5)
 
     def loss_of(mean):
         return jnp.mean(jnp.sum((mean[:12] - truth) ** 2, axis=-1))
 
     def loss(d):
-        return loss_of(hp.run(key, seq, params._replace(diffusion_std=d), KF_CONFIG).info.mean)
+        return loss_of(hp.run(key, seq, _set(params, KF_MODEL, diffusion_std=d), KF_MODEL).info.mean)
 
     value, grad = jax.value_and_grad(loss)(jnp.float32(KF_Q))
     assert np.isfinite(float(grad)) and abs(float(grad)) > 1e-2
@@ -170,9 +180,8 @@ def test_gradient_matches_finite_difference(kalman_toy):
     steps = (0.004, 0.002)
     ds = [KF_Q] + [KF_Q + s * h for h in steps for s in (1, -1)]
     ds += [KF_Q] * (KF_RUNS - len(ds))
-    res = _batched_run(
-        jnp.stack([key] * KF_RUNS), seq, hp.stack_params([params._replace(diffusion_std=d) for d in ds]), KF_CONFIG
-    )
+    batch = hp.stack_params([_set(params, KF_MODEL, diffusion_std=d) for d in ds])
+    res = _batched_run(jnp.stack([key] * KF_RUNS), seq, batch, KF_MODEL)
     losses = np.asarray(jax.vmap(loss_of)(res.info.mean), np.float64)
     assert losses[0] == pytest.approx(float(value), rel=1e-5)  # same key: same random numbers
     for i, h in enumerate(steps):
@@ -185,51 +194,52 @@ def test_gradient_matches_finite_difference(kalman_toy):
 # --- vmap, compilation, determinism, jit --------------------------------------------------------------------------
 
 
-def test_vmap_over_params_equals_single_runs(small_sequence, small_config):
-    p1 = hp.FilterParams(k=3, threshold=0.3, aging=0.05, diffusion_std=0.15)
-    p2 = hp.FilterParams(k=7, threshold=0.5, aging=0.2, diffusion_std=0.3)
+def test_vmap_over_params_equals_single_runs(small_sequence, small_filter):
+    p1 = small_filter.make_params(k=3, threshold=0.3, aging=0.05, diffusion_std=0.15)
+    p2 = small_filter.make_params(k=7, threshold=0.5, aging=0.2, diffusion_std=0.3)
     key = jax.random.key(11)
-    batched = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_config))(hp.stack_params([p1, p2]))
+    batched = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_filter))(hp.stack_params([p1, p2]))
     for i, p in enumerate((p1, p2)):
-        single = hp.run(key, small_sequence, p, small_config)
+        single = hp.run(key, small_sequence, p, small_filter)
         for a, b in zip(_leaves(single), _leaves(jax.tree.map(lambda x, i=i: x[i], batched)), strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
     # The two parameter sets really give different runs.
     assert not np.allclose(batched.info.mean[0], batched.info.mean[1])
 
 
-def test_second_run_does_not_recompile(small_sequence, small_config):
-    hp.run(jax.random.key(0), small_sequence, hp.FilterParams(), small_config)
-    size = hpf._run_jit._cache_size()
+def test_second_run_does_not_recompile(small_sequence, small_filter):
+    hp.run(jax.random.key(0), small_sequence, small_filter.default_params(), small_filter)
+    size = rollout._run_jit._cache_size()
     # Different key, different parameter values (and Python / NumPy scalar types).
-    other = hp.FilterParams(k=np.int64(2), threshold=np.float32(0.5), aging=0.1, diffusion_std=np.float64(0.05),
-                            explorer_fraction=0.0, top_fraction=1, resample_threshold=0.5, obs_std=1.0)
-    res = hp.run(jax.random.key(1), small_sequence, other, small_config)
-    assert hpf._run_jit._cache_size() == size
+    other = small_filter.make_params(k=np.int64(2), threshold=np.float32(0.5), aging=0.1,
+                                     diffusion_std=np.float64(0.05), explorer_fraction=0.0, top_fraction=1,
+                                     resample_threshold=0.5)
+    res = hp.run(jax.random.key(1), small_sequence, other, small_filter)
+    assert rollout._run_jit._cache_size() == size
     # Without ground truth, and with other per-step values of the same shapes.
-    hp.run(jax.random.key(2), small_sequence._replace(ground_truth=None), other, small_config)
-    hp.run(jax.random.key(2), _with_steps(small_sequence, has_heatmap=~small_sequence.has_heatmap), other, small_config)
-    assert hpf._run_jit._cache_size() == size
+    hp.run(jax.random.key(2), small_sequence._replace(ground_truth=None), other, small_filter)
+    hp.run(jax.random.key(2), _with_steps(small_sequence, has_heatmap=~small_sequence.has_heatmap), other, small_filter)
+    assert rollout._run_jit._cache_size() == size
     assert np.all(np.isfinite(np.asarray(res.info.mean)))
 
 
-def test_same_key_is_bit_identical_and_keys_matter(small_sequence, small_config):
-    params = hp.FilterParams()
-    a = hp.run(jax.random.key(3), small_sequence, params, small_config)
-    b = hp.run(jax.random.key(3), small_sequence, params, small_config)
+def test_same_key_is_bit_identical_and_keys_matter(small_sequence, small_filter):
+    params = small_filter.default_params()
+    a = hp.run(jax.random.key(3), small_sequence, params, small_filter)
+    b = hp.run(jax.random.key(3), small_sequence, params, small_filter)
     for x, y in zip(_leaves(a), _leaves(b), strict=True):
         np.testing.assert_array_equal(x, y)
-    c = hp.run(jax.random.key(4), small_sequence, params, small_config)
+    c = hp.run(jax.random.key(4), small_sequence, params, small_filter)
     assert not np.array_equal(np.asarray(a.info.mean), np.asarray(c.info.mean))
-    assert not np.array_equal(np.asarray(a.final_state.particles), np.asarray(c.final_state.particles))
+    assert not np.array_equal(np.asarray(a.final_state.particles.xy), np.asarray(c.final_state.particles.xy))
 
 
-def test_jit_equals_no_jit(small_sequence, small_config):
+def test_jit_equals_no_jit(small_sequence, small_filter):
     seq = _first_steps(small_sequence, 5)
-    params = hp.FilterParams()
-    jitted = hp.run(jax.random.key(6), seq, params, small_config)
+    params = small_filter.default_params()
+    jitted = hp.run(jax.random.key(6), seq, params, small_filter)
     with jax.disable_jit():
-        eager = hp.run(jax.random.key(6), seq, params, small_config)
+        eager = hp.run(jax.random.key(6), seq, params, small_filter)
     np.testing.assert_array_equal(jitted.info.num_valid, eager.info.num_valid)
     np.testing.assert_array_equal(jitted.info.resampled, eager.info.resampled)
     for x, y in zip(_leaves(jitted), _leaves(eager), strict=True):
@@ -241,8 +251,8 @@ def test_jit_equals_no_jit(small_sequence, small_config):
 TRACKING_BOUND = 0.2  # metres; measured about 0.07 - 0.11 over keys 0 - 9 (0.098 for key 0)
 
 
-def test_tracks_the_simulated_ball(small_sequence, small_config):
-    res = hp.run(jax.random.key(0), small_sequence, hp.FilterParams(), small_config)
+def test_tracks_the_simulated_ball(small_sequence, small_filter):
+    res = hp.run(jax.random.key(0), small_sequence, small_filter.default_params(), small_filter)
     truth = small_sequence.ground_truth
     err = _error(res.info.mean, truth)[-10:].mean()
     # A constant guess at the mean of the true path (an oracle the filter does not have) does much worse.
@@ -252,19 +262,19 @@ def test_tracks_the_simulated_ball(small_sequence, small_config):
     assert np.all(np.asarray(res.info.num_valid) > 0)
 
 
-def test_no_heatmap_keeps_uniform_weights(small_sequence, small_config):
+def test_no_heatmap_keeps_uniform_weights(small_sequence, small_filter):
     seq = _with_steps(small_sequence, has_heatmap=np.zeros(small_sequence.num_steps, bool))
-    res = hp.run(jax.random.key(0), seq, hp.FilterParams(), small_config)
+    res = hp.run(jax.random.key(0), seq, small_filter.default_params(), small_filter)
     info = res.info
     assert np.all(np.isfinite(np.asarray(info.mean))) and np.all(np.isfinite(np.asarray(info.cov)))
-    assert np.all(np.isfinite(np.asarray(res.final_state.particles)))
-    np.testing.assert_allclose(info.ess, small_config.num_particles, rtol=1e-5)
+    assert np.all(np.isfinite(np.asarray(res.final_state.particles.xy)))
+    np.testing.assert_allclose(info.ess, small_filter.num_particles, rtol=1e-5)
     np.testing.assert_array_equal(info.num_valid, 0)
-    np.testing.assert_allclose(np.exp(np.asarray(res.final_state.log_weights)), 1.0 / small_config.num_particles,
+    np.testing.assert_allclose(np.exp(np.asarray(res.final_state.log_weights)), 1.0 / small_filter.num_particles,
                                rtol=1e-5)
 
 
-def test_aging_removes_measurements_at_the_predicted_step(small_sequence, small_config):
+def test_aging_removes_measurements_at_the_predicted_step(small_sequence, small_filter):
     """One heat map at step 0, then nothing (and one empty heat map): eq. (2) by hand.
 
     12 pixels at 0.875 and 4 at 0.625, v = 0.125, l = 0.25 (all exact in binary):
@@ -278,8 +288,8 @@ def test_aging_removes_measurements_at_the_predicted_step(small_sequence, small_
     has[0] = True
     has[3] = True  # a heat map with nothing above the threshold is no new input: the buffer keeps aging
     seq = _with_steps(small_sequence, heatmaps=heat, has_heatmap=has, ground_truth=None)
-    params = hp.FilterParams(threshold=0.5, aging=0.125, min_weight=0.25)
-    res = hp.run(jax.random.key(0), seq, params, small_config)
+    params = small_filter.make_params(threshold=0.5, aging=0.125, min_weight=0.25)
+    res = hp.run(jax.random.key(0), seq, params, small_filter)
     expected = np.zeros(small_sequence.num_steps, np.int32)
     for s in range(small_sequence.num_steps):
         expected[s] = 12 * (0.875 - 0.125 * s >= 0.25) + 4 * (0.625 - 0.125 * s >= 0.25)
@@ -320,18 +330,18 @@ def _moving_robot_sequence(small_sequence: hp.Sequence, seed: int = 1):
     return _with_steps(small_sequence, heatmaps=heat, has_heatmap=has, odometry=odometry, ground_truth=relative)
 
 
-def test_odometry_moves_particles_and_buffered_measurements(small_sequence, small_config):
+def test_odometry_moves_particles_and_buffered_measurements(small_sequence, small_filter):
     seq = _moving_robot_sequence(small_sequence)
     # The ball is in view at every heat map, and moves in the base frame (x shrinks, y swings right).
     assert seq.ground_truth[-1, 0] < 1.6 and seq.ground_truth[-1, 1] < -0.5
-    params = hp.FilterParams(aging=0.02)
+    params = small_filter.make_params(aging=0.02)
     still = _with_steps(seq, odometry=np.zeros_like(seq.odometry))  # the same data without the odometry
     err, err_still = [], []
     for k in range(3):
-        res = hp.run(jax.random.key(k), seq, params, small_config)
+        res = hp.run(jax.random.key(k), seq, params, small_filter)
         assert np.all(np.asarray(res.info.num_valid) > 0)  # measurements found at every heat map and kept
         err.append(_error(res.info.mean, seq.ground_truth))
-        err_still.append(_error(hp.run(jax.random.key(k), still, params, small_config).info.mean, seq.ground_truth))
+        err_still.append(_error(hp.run(jax.random.key(k), still, params, small_filter).info.mean, seq.ground_truth))
     err, err_still = np.array(err)[:, 3:], np.array(err_still)[:, 3:]
     assert err.mean() < 0.08, f"mean error with odometry {err.mean():.3f} m"
     assert err.mean() < 0.4 * err_still.mean(), f"{err.mean():.3f} m vs {err_still.mean():.3f} m without odometry"
@@ -340,24 +350,24 @@ def test_odometry_moves_particles_and_buffered_measurements(small_sequence, smal
     assert err[:, between].mean() < 0.08
 
 
-def test_first_odometry_row_is_ignored(small_sequence, small_config):
+def test_first_odometry_row_is_ignored(small_sequence, small_filter):
     seq = _moving_robot_sequence(small_sequence)
     odometry = seq.odometry.copy()
     odometry[0] = (5.0, -3.0, 1.0)
-    a = hp.run(jax.random.key(0), seq, hp.FilterParams(), small_config)
-    b = hp.run(jax.random.key(0), _with_steps(seq, odometry=odometry), hp.FilterParams(), small_config)
+    a = hp.run(jax.random.key(0), seq, small_filter.default_params(), small_filter)
+    b = hp.run(jax.random.key(0), _with_steps(seq, odometry=odometry), small_filter.default_params(), small_filter)
     for x, y in zip(_leaves(a), _leaves(b), strict=True):
         np.testing.assert_array_equal(x, y)
 
 
-def test_gradients_are_finite_with_odometry(small_sequence, small_config):
+def test_gradients_are_finite_with_odometry(small_sequence, small_filter):
     seq = _moving_robot_sequence(small_sequence)
     truth = jnp.asarray(seq.ground_truth, jnp.float32)
-    base = hp.FilterParams(aging=0.02)
+    base = small_filter.make_params(aging=0.02)
 
     def loss(d, trans, rot, sequence):
-        params = base._replace(diffusion_std=d, odom_trans_noise=trans, odom_rot_noise=rot)
-        mean = hp.run(jax.random.key(0), sequence, params, small_config).info.mean
+        params = _set(base, small_filter, diffusion_std=d, odom_trans_noise=trans, odom_rot_noise=rot)
+        mean = hp.run(jax.random.key(0), sequence, params, small_filter).info.mean
         return jnp.mean(jnp.sum((mean - truth) ** 2, axis=-1))
 
     grad = jax.grad(loss, argnums=(0, 1, 2))
@@ -377,8 +387,9 @@ def test_gradients_are_finite_with_odometry(small_sequence, small_config):
      {"resampler": "residual"}, {"spawn": "gaussian"}],
     ids=["systematic", "stratified", "multinomial", "residual", "spawn-gaussian"],
 )
-def test_every_resampler_and_spawn_runs(change, small_sequence, small_config):
-    res = hp.run(jax.random.key(1), small_sequence, hp.FilterParams(), small_config._replace(**change))
+def test_every_resampler_and_spawn_runs(change, small_sequence):
+    model = hp.heatmap_filter(SMALL_OPTIONS._replace(**change))
+    res = hp.run(jax.random.key(1), small_sequence, model.default_params(), model)
     for leaf in _leaves(res):
         if leaf.dtype.kind == "f":
             assert np.all(np.isfinite(leaf))
@@ -390,93 +401,84 @@ def test_every_resampler_and_spawn_runs(change, small_sequence, small_config):
 
 
 @pytest.mark.parametrize(
-    "field, value",
+    "field, value, observation",
     [
-        ("k", 0),
-        ("k", 9),  # k_max = 8 in the shared small configuration
-        ("k", 2.5),
-        ("threshold", 1.5),
-        ("top_fraction", 0.0),
-        ("diffusion_std", -0.1),
-        ("aging", float("nan")),
-        ("explorer_fraction", 1.0),
-        ("obs_std", 0.0),
-        ("odom_trans_noise", float("inf")),
+        ("k", 0, "inverse_distance"),
+        ("k", 9, "inverse_distance"),  # k_max = 8 in the shared small filter
+        ("k", 2.5, "inverse_distance"),
+        ("threshold", 1.5, "inverse_distance"),
+        ("top_fraction", 0.0, "inverse_distance"),
+        ("diffusion_std", -0.1, "inverse_distance"),
+        ("aging", float("nan"), "inverse_distance"),
+        ("explorer_fraction", 1.0, "inverse_distance"),
+        ("min_distance", 0.0, "inverse_distance"),
+        ("obs_std", 0.0, "gaussian"),  # only the Gaussian observation model has obs_std
+        ("odom_trans_noise", float("inf"), "inverse_distance"),
     ],
 )
-def test_invalid_params_raise_naming_the_field(field, value, small_sequence, small_config, monkeypatch):
-    assert small_config.k_max == 8
-    params = hp.FilterParams()._replace(**{field: value})
-    with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.validate_params(params, small_config)
+def test_invalid_params_raise_naming_the_field(field, value, observation, small_sequence, small_filter, monkeypatch):
+    model = small_filter if observation == SMALL_OPTIONS.observation else hp.heatmap_filter(
+        SMALL_OPTIONS._replace(observation=observation)
+    )
+    assert model.observation.k_max == 8
+    params = model.make_params({field: value})
+    match = rf"^(\w+\.)*{field}:"  # the dotted name, e.g. observation.k
+    with pytest.raises(ValueError, match=match):
+        hp.validate_params(params, model)
     # A batch with one bad element is rejected too.
-    with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.validate_params(hp.FilterParams(*[np.array([a, b]) for a, b in zip(hp.FilterParams(), params)]),
-                           small_config)
+    with pytest.raises(ValueError, match=match):
+        hp.validate_params(jax.tree.map(lambda a, b: np.array([a, b]), model.default_params(), params), model)
 
     def must_not_run(*args, **kwargs):
         raise AssertionError("run() compiled or ran before validating")
 
-    monkeypatch.setattr(hpf, "_run_jit", must_not_run)
-    with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.run(jax.random.key(0), small_sequence, params, small_config)
+    monkeypatch.setattr(rollout, "_run_jit", must_not_run)
+    with pytest.raises(ValueError, match=match):
+        hp.run(jax.random.key(0), small_sequence, params, model)
 
 
-def test_valid_params_reach_the_compiled_run(small_sequence, small_config, monkeypatch):
+def test_valid_params_reach_the_compiled_run(small_sequence, small_filter, monkeypatch):
     """The hook used above is the real one: valid parameters get through to ``_run_jit``."""
-    hp.validate_params(hp.FilterParams(), small_config)
-    hp.validate_params(hp.stack_params([hp.FilterParams(), hp.FilterParams(k=8, top_fraction=1.0)]), small_config)
+    hp.validate_params(small_filter.default_params(), small_filter)
+    hp.validate_params(
+        hp.stack_params([small_filter.default_params(), small_filter.make_params(k=8, top_fraction=1.0)]), small_filter
+    )
     calls = []
-    monkeypatch.setattr(hpf, "_run_jit", lambda *args: calls.append(args) or "ran")
-    assert hp.run(jax.random.key(0), small_sequence, hp.FilterParams(), small_config) == "ran"
+    monkeypatch.setattr(rollout, "_run_jit", lambda *args: calls.append(args) or "ran")
+    assert hp.run(jax.random.key(0), small_sequence, small_filter.default_params(), small_filter) == "ran"
     assert len(calls) == 1
 
 
+_BAD_BOX = (1.0, 0.0, -1.0, 1.0)
+
+
 @pytest.mark.parametrize(
-    "field, change",
+    "field, change, model",
     [
-        ("resampler", {"resampler": "bogus"}),
-        ("spawn", {"spawn": "normal"}),
-        ("observation", {"observation": "cauchy"}),
-        ("num_particles", {"num_particles": 0}),
-        ("k_max", {"k_max": 1.5}),
-        ("spawn_box", {"spawn_box": (1.0, 0.0, -1.0, 1.0)}),
+        ("resampler", {"resampler": "bogus"}, SMALL_FILTER._replace(resampling=hp.ESSResampling(resampler="bogus"))),
+        # The spawn and observation names choose a piece's type: no piece holds an unknown name.
+        ("spawn", {"spawn": "normal"}, None),
+        ("observation", {"observation": "cauchy"}, None),
+        ("num_particles", {"num_particles": 0}, SMALL_FILTER._replace(num_particles=0)),
+        ("k_max", {"k_max": 1.5}, SMALL_FILTER._replace(observation=hp.InverseDistance(k_max=1.5))),
+        ("knn", {"knn": "kdtree"}, SMALL_FILTER._replace(observation=hp.InverseDistance(k_max=8, knn="kdtree"))),
+        ("spawn_box", {"spawn_box": _BAD_BOX}, SMALL_FILTER._replace(initial=hp.UniformBox(box=_BAD_BOX))),
+        ("spawn_box", {"spawn_box": _BAD_BOX}, SMALL_FILTER._replace(injectors=(hp.UniformExplorers(box=_BAD_BOX),))),
     ],
+    ids=["resampler", "spawn", "observation", "num_particles", "k_max", "knn", "spawn_box-initial",
+         "spawn_box-explorers"],
 )
-def test_invalid_config_raises_naming_the_field(field, change, small_sequence, small_config, monkeypatch):
-    config = small_config._replace(**change)
+def test_invalid_config_raises_naming_the_field(field, change, model, small_sequence, monkeypatch):
+    options = SMALL_OPTIONS._replace(**change)
     with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.validate_config(config)
-    monkeypatch.setattr(hpf, "_run_jit", lambda *args: pytest.fail("run() did not validate the config first"))
+        validate_options(options)
     with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.run(jax.random.key(0), small_sequence, hp.FilterParams(), config)
-
-
-def test_order_by_weight_is_a_stable_descending_argsort_up_to_near_ties():
-    """The step's packed-key sort against NumPy: exact for weights apart by more than its resolution."""
-    from heatpf_jax.filter import _order_by_weight
-
-    rng = np.random.default_rng(21)
-    order = jax.jit(_order_by_weight)
-    for n in (1, 2, 97, 500, 1000):
-        # Distinct weights 1 % apart (far above the key's resolution) in random order, zeros and exact ties.
-        w = (1.01 ** -rng.permutation(n).astype(np.float64)).astype(np.float32)
-        w[rng.random(n) < 0.2] = 0.0
-        w[: n // 10] = w[n // 10]
-        w = w / max(w.sum(), 1e-30)
-        got = np.asarray(order(jnp.asarray(w)))
-        assert sorted(got.tolist()) == list(range(n))
-        np.testing.assert_array_equal(got, np.argsort(-w, kind="stable"))
-        # Always: weights are non-increasing up to the key's resolution, zeros last in index order.
-        sw = w[got]
-        assert np.all(sw[1:] <= sw[:-1] * (1 + 2.0 ** (max(1, (n - 1).bit_length()) - 22)))
-        zeros = got[sw == 0]
-        np.testing.assert_array_equal(zeros, np.sort(zeros))
-    # Weights closer than the resolution (here 2**-15 apart at n = 500) may come in index order instead.
-    w = np.float32(0.5) * (1 + np.float32(2.0**-20) * np.arange(500, dtype=np.float32))
-    got = np.asarray(order(jnp.asarray(w)))
-    assert sorted(got.tolist()) == list(range(500))
-    np.testing.assert_allclose(w[got], np.sort(w)[::-1], rtol=2.0**-13)
-    # Beyond 2**16 particles the order is the exact stable argsort.
-    w = jnp.asarray(rng.random(70000), jnp.float32)
-    np.testing.assert_array_equal(np.asarray(order(w)), np.argsort(-np.asarray(w), kind="stable"))
+        hp.heatmap_filter(options)
+    if model is None:
+        return
+    # A model built directly with the bad value: run() refuses it before anything is compiled.
+    with pytest.raises(ValueError, match=rf"^{field}:"):
+        model.validate()
+    monkeypatch.setattr(rollout, "_run_jit", lambda *args: pytest.fail("run() did not validate the model first"))
+    with pytest.raises(ValueError, match=rf"^{field}:"):
+        hp.run(jax.random.key(0), small_sequence, model.default_params(), model)

@@ -9,6 +9,8 @@ import pytest
 
 import heatpf_jax as hp
 from heatpf_jax.knn import BlockPlan, k_nearest_blocked, plan_blocks
+from heatpf_jax.presets import validate_options
+from tests.conftest import SMALL_OPTIONS
 
 K_MAX = 8
 N_PART = 160
@@ -315,13 +317,17 @@ def test_grad_matches_plain_formulation():
     np.testing.assert_allclose(np.asarray(gw), np.asarray(gw_plain), rtol=1e-5, atol=1e-7)
 
 
-def test_filter_gives_the_same_run_with_blocked_and_dense_search(small_sequence, small_config):
+def test_filter_gives_the_same_run_with_blocked_and_dense_search(small_sequence):
     key = jax.random.key(9)
-    params = hp.FilterParams(k=4)
-    dense = hp.run(key, small_sequence, params, small_config._replace(knn="dense"))
-    blocked = hp.run(key, small_sequence, params, small_config._replace(knn="blocked"))
+    dense_filter = hp.heatmap_filter(SMALL_OPTIONS._replace(knn="dense"))
+    blocked_filter = hp.heatmap_filter(SMALL_OPTIONS._replace(knn="blocked"))
+    params = dense_filter.make_params(k=4)
+    dense = hp.run(key, small_sequence, params, dense_filter)
+    blocked = hp.run(key, small_sequence, params, blocked_filter)
     np.testing.assert_allclose(np.asarray(blocked.info.mean), np.asarray(dense.info.mean), rtol=1e-5, atol=1e-6)
-    np.testing.assert_array_equal(np.asarray(blocked.final_state.particles), np.asarray(dense.final_state.particles))
+    np.testing.assert_array_equal(
+        np.asarray(blocked.final_state.particles.xy), np.asarray(dense.final_state.particles.xy)
+    )
 
 
 def test_unknown_search_method_is_refused():
@@ -329,7 +335,7 @@ def test_unknown_search_method_is_refused():
     with pytest.raises(ValueError, match="method"):
         hp.particle_weights(jnp.zeros((2, 2), jnp.float32), meas, 1, method="kdtree")
     with pytest.raises(ValueError, match="knn"):
-        hp.validate_config(hp.FilterConfig(knn="kdtree"))
+        validate_options(hp.FilterOptions(knn="kdtree"))
 
 
 def test_batched_k_shares_one_unbatched_round_count():

@@ -222,3 +222,20 @@ def test_move_and_diffuse_gradients_are_reparameterised():
     # d/dtn [(tn |d|)^2 + s^2] = 2 tn |d|^2 = 0.1; d/ds = 2 s = 0.2 (up to the sample's scatter).
     np.testing.assert_allclose([float(g_tn), float(g_s)], [0.1, 0.2], rtol=0.1)
     assert np.all(np.isfinite(jax.grad(msd, argnums=(0, 1))(jnp.float32(0.0), jnp.float32(0.0))))
+
+
+def test_motion_pieces():
+    """RandomWalk is move_and_diffuse on the positions; DiffusionOnly ignores the odometry."""
+    xy = jnp.asarray(np.random.default_rng(0).normal(size=(100, 2)), jnp.float32)
+    inputs = hp.StepInputs(
+        heatmap=jnp.zeros((2, 2)), has_heatmap=jnp.asarray(False), cam_to_base=jnp.eye(4),
+        odometry=jnp.array([0.3, 0.1, 0.2]), intrinsics=jnp.ones(4), plane_height=jnp.float32(0.0),
+        dt=jnp.float32(0.1),
+    )
+    key = jax.random.key(4)
+    walk = hp.RandomWalk().predict(key, hp.Particles(xy), inputs, hp.RandomWalkParams(0.2, 0.1, 0.05))
+    ref = hp.move_and_diffuse(key, xy, inputs.odometry, 0.1, 0.05, 0.2)
+    np.testing.assert_array_equal(np.asarray(walk.xy), np.asarray(ref))
+    still = hp.DiffusionOnly().predict(key, hp.Particles(xy), inputs, hp.DiffusionOnly().default_params()._replace(
+        diffusion_std=0.0))
+    np.testing.assert_array_equal(np.asarray(still.xy), np.asarray(xy))

@@ -339,3 +339,26 @@ def test_gaussian_particle_weights_match_brute_force():
     meas3, xy3, w3, valid3 = make_measurements(rng, n_valid=3, extent=3.0)
     got = np.asarray(_gpw(jnp.asarray(parts), meas3, jnp.int32(8), std=jnp.float32(1.0)))
     np.testing.assert_allclose(got, ref_gaussian(parts, xy3, w3, valid3, 8, 1.0), rtol=2e-5)
+
+
+def test_observation_pieces_are_logs_of_the_weight_functions():
+    rng = np.random.default_rng(3)
+    particles = jnp.asarray(rng.normal(size=(30, 2)) * 2, jnp.float32)
+    buf = hp.Measurements(
+        xy=jnp.asarray(rng.normal(size=(12, 2)), jnp.float32),
+        weight=jnp.asarray(rng.random(12), jnp.float32),
+        valid=jnp.asarray(rng.random(12) < 0.8),
+    )
+    inv = hp.InverseDistance(k_max=4, knn="dense")
+    ll = np.asarray(inv.log_likelihood(particles, buf, hp.InverseDistanceParams(k=3, min_distance=0.05)), np.float64)
+    # NumPy brute force of eq. (1).
+    m, w = np.asarray(buf.xy)[np.asarray(buf.valid)], np.asarray(buf.weight)[np.asarray(buf.valid)]
+    d = np.linalg.norm(np.asarray(particles)[:, None] - m[None], axis=-1)
+    idx = np.argsort(d, axis=1)[:, :3]
+    ref = np.log(np.sum(np.take_along_axis(w[None] / np.maximum(d, 0.05), idx, axis=1), axis=1))
+    np.testing.assert_allclose(ll, ref, rtol=1e-5)
+    floored = hp.Floored(inv)
+    params = floored.default_params()._replace(base=hp.InverseDistanceParams(k=3, min_distance=0.05), weight_floor=0.5)
+    np.testing.assert_allclose(np.asarray(floored.log_likelihood(particles, buf, params)), np.maximum(ref, np.log(0.5)),
+                               rtol=1e-5)
+    assert floored.properties().base == inv.properties()

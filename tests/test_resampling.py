@@ -265,3 +265,32 @@ def test_ess_matches_numpy(rng):
     # Two equal survivors: ESS = 2.
     two = jnp.zeros((10,), jnp.float32).at[jnp.array([2, 8])].set(1.0)
     assert float(hp.effective_sample_size(two)) == pytest.approx(2.0, rel=1e-6)
+
+
+def test_ess_resampling_piece_ancestors_and_ranks(rng):
+    """Resampled: ancestors follow the weights and slot i has rank i; not resampled: identity and weight ranks."""
+    import math
+
+    from heatpf_jax.numerics import order_by_weight
+
+    n = 64
+    w = rng.random(n).astype(np.float32) ** 4
+    w /= w.sum()
+    log_w = jnp.log(jnp.asarray(w))
+    order = order_by_weight(jnp.exp(log_w))
+    piece = hp.ESSResampling(resampler=hp.systematic)
+    ess = 1.0 / np.sum(w.astype(np.float64) ** 2)
+    res = piece.resample(jax.random.key(0), log_w, order, hp.ESSParams(1.0))
+    assert bool(res.resampled) and float(res.ess) == pytest.approx(ess, rel=1e-4)
+    np.testing.assert_array_equal(np.asarray(res.rank), np.arange(n))
+    counts = np.bincount(np.asarray(res.ancestors), minlength=n)
+    assert np.all(np.abs(counts - n * w) < 1.0 + 1e-4)  # systematic: floor or ceil of n w
+    # Copies of one particle are contiguous, and support decreases with the slot.
+    anc = np.asarray(res.ancestors)
+    assert np.all(np.diff(w[anc]) <= 1e-7)
+    np.testing.assert_allclose(np.asarray(res.log_weights), -math.log(n), rtol=1e-6)
+    kept = piece.resample(jax.random.key(0), log_w, order, hp.ESSParams(0.0))
+    assert not bool(kept.resampled)
+    np.testing.assert_array_equal(np.asarray(kept.ancestors), np.arange(n))
+    np.testing.assert_array_equal(np.asarray(kept.rank), np.argsort(np.argsort(-w, kind="stable"), kind="stable"))
+    np.testing.assert_array_equal(np.asarray(kept.log_weights), np.asarray(log_w))

@@ -13,21 +13,27 @@ import pytest
 import heatpf_jax as hp
 from heatpf_jax.cli import main, parse_grid
 from heatpf_jax.sweep import _sweep_jit, batch_size_of, sweep, sweep_memory
+from tests.conftest import SMALL_FILTER, SMALL_OPTIONS
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _batch():
-    sets = [hp.FilterParams(k=k, threshold=t, diffusion_std=d) for k in (1, 4) for t in (0.3, 0.5) for d in (0.1, 0.2)]
+    sets = [
+        SMALL_FILTER.make_params(k=k, threshold=t, diffusion_std=d)
+        for k in (1, 4)
+        for t in (0.3, 0.5)
+        for d in (0.1, 0.2)
+    ]
     return hp.stack_params(sets[:7])  # 7: not a multiple of the chunk, exercises padding
 
 
-def test_sweep_equals_vmapped_runs_for_every_chunk(small_sequence, small_config):
+def test_sweep_equals_vmapped_runs_for_every_chunk(small_sequence, small_filter):
     batch = _batch()
     key = jax.random.key(4)
-    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_config).info)(batch)
+    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_filter).info)(batch)
     for chunk in (1, 3, None):
-        out = sweep(key, small_sequence, batch, small_config, chunk=chunk)
+        out = sweep(key, small_sequence, batch, small_filter, chunk=chunk)
         assert out.mean.shape == (7, small_sequence.num_steps, 2)
         np.testing.assert_allclose(np.asarray(out.mean), np.asarray(ref.mean), rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(np.asarray(out.cov), np.asarray(ref.cov), rtol=1e-4, atol=1e-6)
@@ -35,33 +41,33 @@ def test_sweep_equals_vmapped_runs_for_every_chunk(small_sequence, small_config)
     assert np.abs(np.asarray(out.mean[0]) - np.asarray(out.mean[5])).max() > 1e-3
 
 
-def test_sweep_groups_sets_by_k_and_returns_the_callers_order(small_sequence, small_config):
+def test_sweep_groups_sets_by_k_and_returns_the_callers_order(small_sequence, small_filter):
     """Sets run sorted by k (chunks of similar k run fewer selection rounds); results come back in order."""
-    sets = [hp.FilterParams(k=k, threshold=t) for k, t in ((6, 0.3), (1, 0.5), (4, 0.3), (1, 0.3), (6, 0.5))]
+    sets = [small_filter.make_params(k=k, threshold=t) for k, t in ((6, 0.3), (1, 0.5), (4, 0.3), (1, 0.3), (6, 0.5))]
     batch = hp.stack_params(sets)
     key = jax.random.key(5)
-    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_config).info)(batch)
-    out = sweep(key, small_sequence, batch, small_config, chunk=2)
+    ref = jax.vmap(lambda p: hp.run(key, small_sequence, p, small_filter).info)(batch)
+    out = sweep(key, small_sequence, batch, small_filter, chunk=2)
     np.testing.assert_allclose(np.asarray(out.mean), np.asarray(ref.mean), rtol=1e-5, atol=1e-5)
     np.testing.assert_array_equal(np.asarray(out.num_valid), np.asarray(ref.num_valid))
 
 
-def test_sweep_compiles_once_for_repeated_calls(small_sequence, small_config):
+def test_sweep_compiles_once_for_repeated_calls(small_sequence, small_filter):
     batch = _batch()
-    sweep(jax.random.key(0), small_sequence, batch, small_config, chunk=2)
+    sweep(jax.random.key(0), small_sequence, batch, small_filter, chunk=2)
     before = _sweep_jit._cache_size()
     other = jax.tree.map(lambda v: v[::-1], batch)  # new values, same shapes
-    sweep(jax.random.key(1), small_sequence, other, small_config, chunk=2)
+    sweep(jax.random.key(1), small_sequence, other, small_filter, chunk=2)
     assert _sweep_jit._cache_size() == before
 
 
-def test_peak_memory_grows_with_chunk_not_batch(small_sequence, small_config):
+def test_peak_memory_grows_with_chunk_not_batch(small_sequence, small_filter):
     key = jax.random.key(0)
-    small = hp.stack_params([hp.FilterParams(k=1 + i % 4) for i in range(8)])
-    big = hp.stack_params([hp.FilterParams(k=1 + i % 4) for i in range(32)])
-    m_small = sweep_memory(key, small_sequence, small, small_config, chunk=2)
-    m_big = sweep_memory(key, small_sequence, big, small_config, chunk=2)
-    m_chunk = sweep_memory(key, small_sequence, big, small_config, chunk=8)
+    small = hp.stack_params([small_filter.make_params(k=1 + i % 4) for i in range(8)])
+    big = hp.stack_params([small_filter.make_params(k=1 + i % 4) for i in range(32)])
+    m_small = sweep_memory(key, small_sequence, small, small_filter, chunk=2)
+    m_big = sweep_memory(key, small_sequence, big, small_filter, chunk=2)
+    m_chunk = sweep_memory(key, small_sequence, big, small_filter, chunk=8)
     # Temporaries: independent of the batch at a fixed chunk, and larger for a larger chunk.
     assert m_big.temp_bytes <= 1.1 * m_small.temp_bytes
     assert m_chunk.temp_bytes > 2 * m_big.temp_bytes
@@ -69,16 +75,17 @@ def test_peak_memory_grows_with_chunk_not_batch(small_sequence, small_config):
 
 def test_batch_axis_errors():
     with pytest.raises(ValueError, match="params_batch"):
-        batch_size_of(hp.FilterParams())
-    with pytest.raises(ValueError, match="k"):
-        bad = hp.stack_params([hp.FilterParams(k=1), hp.FilterParams(k=99)])
-        sweep(jax.random.key(0), None, bad, hp.FilterConfig(k_max=8))
+        batch_size_of(SMALL_FILTER.default_params())
+    model = hp.heatmap_filter(hp.FilterOptions(k_max=8))
+    with pytest.raises(ValueError, match=r"^observation\.k: "):
+        bad = hp.stack_params([model.make_params(k=1), model.make_params(k=99)])
+        sweep(jax.random.key(0), None, bad, model)
 
 
-def test_two_devices_give_identical_results(small_sequence, small_config, tmp_path):
+def test_two_devices_give_identical_results(small_sequence, small_filter, tmp_path):
     batch = _batch()
     key = jax.random.key(2)
-    one = np.asarray(sweep(key, small_sequence, batch, small_config, chunk=2).mean)
+    one = np.asarray(sweep(key, small_sequence, batch, small_filter, chunk=2).mean)
     np.save(tmp_path / "one.npy", one)
     script = textwrap.dedent(f"""
         import jax, numpy as np
@@ -87,9 +94,9 @@ def test_two_devices_give_identical_results(small_sequence, small_config, tmp_pa
         from heatpf_jax.sim import simulate_standard
         from heatpf_jax.sweep import sweep
         from tests.test_sweep import _batch
-        from tests.conftest import SMALL_CONFIG
+        from tests.conftest import SMALL_FILTER
         seq = simulate_standard(3, num_steps=20, shrink=4)
-        two = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_CONFIG, chunk=2).mean)
+        two = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_FILTER, chunk=2).mean)
         one = np.load({str(tmp_path / "one.npy")!r})
         np.testing.assert_allclose(two, one, rtol=1e-5, atol=1e-5)
         print("identical on", len(jax.devices()), "devices")
@@ -110,11 +117,11 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def test_two_processes_as_two_hosts_give_identical_results(small_sequence, small_config, tmp_path):
+def test_two_processes_as_two_hosts_give_identical_results(small_sequence, small_filter, tmp_path):
     """The multi-host path for real: two processes joined by ``jax.distributed.initialize`` (gloo
     collectives over localhost), one CPU device each; the mesh spans both, results are gathered to both."""
     batch = _batch()
-    one = np.asarray(sweep(jax.random.key(2), small_sequence, batch, small_config, chunk=2).mean)
+    one = np.asarray(sweep(jax.random.key(2), small_sequence, batch, small_filter, chunk=2).mean)
     np.save(tmp_path / "one.npy", one)
     port = _free_port()
     script = textwrap.dedent(f"""
@@ -129,9 +136,9 @@ def test_two_processes_as_two_hosts_give_identical_results(small_sequence, small
         from heatpf_jax.sim import simulate_standard
         from heatpf_jax.sweep import sweep
         from tests.test_sweep import _batch
-        from tests.conftest import SMALL_CONFIG
+        from tests.conftest import SMALL_FILTER
         seq = simulate_standard(3, num_steps=20, shrink=4)
-        out = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_CONFIG, chunk=2, devices=jax.devices()).mean)
+        out = np.asarray(sweep(jax.random.key(2), seq, _batch(), SMALL_FILTER, chunk=2, devices=jax.devices()).mean)
         np.save({str(tmp_path)!r} + f"/host{{pid}}.npy", out)
         print("process", pid, "of", jax.process_count(), "done")
     """)
@@ -154,8 +161,8 @@ def test_two_processes_as_two_hosts_give_identical_results(small_sequence, small
 def test_parse_grid_errors():
     assert parse_grid(["k=1,3", "aging=0.1,0.2"]) == {"k": [1, 3], "aging": [0.1, 0.2]}
     for bad, field in [
-        (["num_particles=10,20"], "num_particles"),
-        (["nope=1"], "nope"),
+        (["num_particles=10,20"], "num_particles: a static option cannot be swept"),
+        (["nope=1"], "nope: not a parameter of method heatmap"),
         (["k=1", "k=2"], "k"),
         (["threshold=x"], "threshold"),
         (["k"], "--grid"),
@@ -165,7 +172,7 @@ def test_parse_grid_errors():
         assert str(info.value).startswith(field)
 
 
-def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_config, capsys):
+def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_filter, capsys):
     path = tmp_path / "seq.npz"
     hp.save_sequence(path, small_sequence)
     out = tmp_path / "sweep.csv"
@@ -181,11 +188,11 @@ def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_conf
         "--batch-size",
         "2",
         "--set",
-        f"num_particles={small_config.num_particles}",
+        f"num_particles={SMALL_OPTIONS.num_particles}",
         "--set",
-        f"max_measurements={small_config.max_measurements}",
+        f"max_measurements={SMALL_OPTIONS.max_measurements}",
         "--set",
-        f"k_max={small_config.k_max}",
+        f"k_max={SMALL_OPTIONS.k_max}",
     ]
     assert main(args) == 0
     full = out.read_text()
@@ -193,10 +200,8 @@ def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_conf
     assert lines[0] == "index,k,diffusion_std,mean_error,max_error,std_error" and len(lines) == 7
     # Each row's error is that of a single run with those parameters (same key).
     row = lines[4].split(",")
-    params = small_config
-    info = hp.run(
-        jax.random.key(0), small_sequence, hp.FilterParams(k=int(row[1]), diffusion_std=float(row[2])), params
-    ).info
+    params = small_filter.make_params(k=int(row[1]), diffusion_std=float(row[2]))
+    info = hp.run(jax.random.key(0), small_sequence, params, small_filter).info
     err = np.linalg.norm(np.asarray(info.mean, np.float64) - small_sequence.ground_truth, axis=1)[10:]
     assert float(row[3]) == pytest.approx(err.mean(), rel=1e-4, abs=1e-6)
     printed = capsys.readouterr().out

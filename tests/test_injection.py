@@ -110,3 +110,38 @@ def test_explorer_slots_after_sorted_resampling_are_the_lowest_support(name, rng
             assert slots.sum() == round(fraction * n) and np.all(slots[n - slots.sum():])
             lowest = np.asarray(hp.explorer_mask(jnp.asarray(support), fraction))
             np.testing.assert_array_equal(np.sort(support[slots]), np.sort(support[lowest]))
+
+
+def test_take_slots_chain_disjoint_lowest_support(rng):
+    """Injectors in a row take disjoint slots, lowest support (highest rank) first, from any rank layout."""
+    n = 50
+    rank = jnp.asarray(rng.permutation(n), jnp.int32)
+    first = np.asarray(hp.take_slots(rank, 0, 5))
+    second = np.asarray(hp.take_slots(rank, 5, 7))
+    r = np.asarray(rank)
+    np.testing.assert_array_equal(np.sort(r[first]), np.arange(45, 50))
+    np.testing.assert_array_equal(np.sort(r[second]), np.arange(38, 45))
+    assert not np.any(first & second)
+    assert not np.any(np.asarray(hp.take_slots(rank, 3, 0)))
+
+
+def test_explorer_pieces_refill_the_lowest_support_slots(rng):
+    from heatpf_jax.motion import Particles
+
+    n = 40
+    xy = jnp.asarray(rng.normal(size=(n, 2)), jnp.float32)
+    rank = jnp.asarray(rng.permutation(n), jnp.int32)
+    ctx = hp.InjectionContext(
+        particles=Particles(xy), log_weights=jnp.full((n,), -np.log(n), jnp.float32), rank=rank,
+        used=jnp.int32(2), estimate=hp.Estimate(jnp.array([10.0, 10.0]), jnp.eye(2), jnp.zeros(2)),
+        motion=hp.RandomWalk(), motion_params=hp.RandomWalkParams(),
+    )
+    uni = hp.UniformExplorers(box=(20.0, 21.0, 30.0, 31.0)).inject(jax.random.key(0), ctx, hp.ExplorerParams(0.25))
+    gau = hp.GaussianExplorers().inject(jax.random.key(0), ctx, hp.GaussianExplorerParams(0.25, 0.1))
+    r = np.asarray(rank)
+    taken = (r >= n - 2 - 10) & (r < n - 2)  # ranks 28..37: 10 slots after the 2 already used
+    for out, centre in ((uni, [20.5, 30.5]), (gau, [10.0, 10.0])):
+        assert int(out.used) == 12
+        moved = np.any(np.asarray(out.particles.xy) != np.asarray(xy), axis=1)
+        np.testing.assert_array_equal(moved, taken)
+        assert np.all(np.abs(np.asarray(out.particles.xy)[taken] - centre) < 0.6)

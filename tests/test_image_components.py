@@ -7,7 +7,7 @@ import pytest
 from scipy import ndimage
 
 import heatpf_jax as hp
-from heatpf_jax.clusters import cluster_measurement, connected_components, strongest_cluster_centre
+from heatpf_jax.image_components import cluster_measurement, connected_components, strongest_cluster_centre
 
 EIGHT = np.ones((3, 3), int)
 _components = jax.jit(connected_components)

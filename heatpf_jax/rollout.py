@@ -1,0 +1,118 @@
+"""``run``: any model with ``init``/``step`` rolled over a whole sequence with ``lax.scan``.
+
+A *model* is a hashable object (the ``jit`` static argument) with ``init(key, params) -> state``,
+``step(key, state, inputs, params) -> (state, info)``, ``default_params()``, ``properties()`` and
+``validate()``: the particle filter (:class:`heatpf_jax.filter.Filter`) and the baselines
+(:class:`heatpf_jax.baselines.KalmanFilter`) alike, so ``run``, ``sweep`` and the evaluation are
+written once for all of them.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+from jaxtyping import Array, Bool, Float, PRNGKeyArray
+
+from heatpf_jax import params as P
+from heatpf_jax.pieces import StepInputs
+from heatpf_jax.sequence import Sequence
+
+__all__ = ["RunResult", "run", "stack_params", "validate_params"]
+
+
+class RunResult(NamedTuple):
+    """What :func:`run` returns: the model's per-step info stacked over steps (leading axis T) and its final state."""
+
+    info: Any
+    final_state: Any
+
+
+def validate_params(params, model) -> None:
+    """Raises ``ValueError`` naming the parameter (dotted path) if a concrete value is out of range.
+
+    Works on single sets and on batches (every element is checked); traced values are skipped.
+    """
+    if not isinstance(params, type(model.default_params())):
+        raise TypeError(
+            f"params: expected {type(model.default_params()).__name__} for {type(model).__name__}, "
+            f"got {type(params).__name__}"
+        )
+    P.validate(params, model.properties())
+
+
+def stack_params(params_list: list) -> Any:
+    """Stacks parameter sets (of one model) along a new leading axis, for ``jax.vmap`` sweeps.
+
+    Leaves become JAX arrays (:func:`run` casts each to its parameter's dtype).
+    """
+    return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *params_list)
+
+
+class _ScanInputs(NamedTuple):
+    key: PRNGKeyArray
+    heatmap: Float[Array, "h w"]
+    has_heatmap: Bool[Array, ""]
+    cam_to_base: Float[Array, "4 4"]
+    odometry: Float[Array, "3"]
+
+
+def _run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
+    k_init, k_steps = jax.random.split(key)
+    num_steps = sequence.heatmaps.shape[0]
+    intrinsics = jnp.asarray(sequence.intrinsics, jnp.float32)
+    plane_height = jnp.asarray(sequence.ball_radius, jnp.float32)
+    dt = jnp.asarray(sequence.dt, jnp.float32)
+
+    def body(state, x: _ScanInputs):
+        inputs = StepInputs(
+            heatmap=x.heatmap,
+            has_heatmap=x.has_heatmap,
+            cam_to_base=x.cam_to_base,
+            odometry=x.odometry,
+            intrinsics=intrinsics,
+            plane_height=plane_height,
+            dt=dt,
+        )
+        return model.step(x.key, state, inputs, params)
+
+    xs = _ScanInputs(
+        key=jax.random.split(k_steps, num_steps),
+        heatmap=jnp.asarray(sequence.heatmaps, jnp.float32),
+        has_heatmap=jnp.asarray(sequence.has_heatmap, bool),
+        cam_to_base=jnp.asarray(sequence.cam_to_base, jnp.float32),
+        odometry=jnp.asarray(sequence.odometry, jnp.float32),
+    )
+    final_state, info = lax.scan(body, model.init(k_init, params), xs)
+    return RunResult(info=info, final_state=final_state)
+
+
+_run_jit = jax.jit(_run, static_argnames="model")
+
+
+def run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
+    """Rolls ``model`` over a whole sequence with ``lax.scan`` (jitted once per model and shapes).
+
+    Each heat map is measured inside the step, so every parameter (the threshold included) stays a
+    traced value. Row 0 of the odometry is ignored (the first step has no previous base frame). To
+    sweep, ``jax.vmap`` :func:`run` over a batch of params (see :func:`stack_params`) or use
+    :func:`heatpf_jax.sweep.sweep`; under ``vmap``/``jit`` the eager checks skip traced values.
+
+    Args:
+        key: PRNG key.
+        sequence: a :class:`~heatpf_jax.sequence.Sequence` (see ``load_sequence``).
+        params: the model's params (e.g. :class:`~heatpf_jax.filter.FilterParams`).
+        model: a :class:`~heatpf_jax.filter.Filter`, a baseline, or any model (static).
+
+    Returns:
+        :class:`RunResult` with per-step info (leading axis T).
+    """
+    model.validate()
+    validate_params(params, model)
+    params = P.as_arrays(params, model.properties())
+    odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
+    # Ground truth is not an input: dropping it keeps one compilation with or without it.
+    sequence = sequence._replace(odometry=odometry, ground_truth=None)
+    return _run_jit(key, sequence, params, model)

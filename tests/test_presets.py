@@ -1,0 +1,70 @@
+"""Named methods: what each preset is made of, and the 2018 node's settings as the issue lists them."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax import presets
+
+
+def test_every_method_builds_and_validates():
+    for name in presets.METHODS:
+        method = hp.build(name)
+        method.model.validate()
+        hp.validate_params(method.params, method.model)
+    with pytest.raises(ValueError, match="^method: must be one of"):
+        hp.build("particle")
+
+
+def test_conventional_is_the_particle_filter_with_the_cluster_source():
+    heat, conv = hp.build("heatmap").model, hp.build("conventional").model
+    assert isinstance(conv.source, hp.ClusterCentreSource) and isinstance(heat.source, hp.PixelSource)
+    assert conv._replace(source=heat.source) == heat  # every other piece is the same
+    assert hash(hp.heatmap_filter()) == hash(hp.heatmap_filter())  # equal filters share a compilation
+
+
+def test_bitbots2018_settings():
+    model, params = hp.build("bitbots2018")
+    assert model.num_particles == 2000
+    assert isinstance(model.motion, hp.DiffusionOnly) and params.motion.diffusion_std == 0.1
+    assert isinstance(model.buffer, hp.LatestOnly)
+    assert isinstance(model.observation, hp.Floored) and params.observation.weight_floor == 0.001
+    assert params.observation.base.k == 1
+    assert params.estimator.top_fraction == 0.5
+    assert model.resampling.resampler is hp.systematic and params.resampling.resample_threshold == 1.0
+    (explorers,) = model.injectors
+    assert explorers.box == (-18.0, 18.0, -18.0, 18.0) and params.injectors["explorers"].explorer_fraction == 0.2
+    assert model.initial.box == (-18.0, 18.0, -18.0, 18.0)
+
+
+def test_bitbots2018_weight_floor_and_no_odometry(small_sequence):
+    """A step without a heat map weights every particle equally; odometry moves nothing."""
+    model = presets.bitbots2018(hp.FilterOptions(max_measurements=128, k_max=1))
+    model = model._replace(num_particles=256)
+    params = presets.bitbots2018_params()
+    seq = small_sequence._replace(has_heatmap=np.arange(small_sequence.num_steps) < 10,
+                                  odometry=np.tile([0.2, 0.0, 0.1], (small_sequence.num_steps, 1)))
+    res = hp.run(jax.random.key(0), seq, params, model)
+    ess = np.asarray(res.info.ess)
+    np.testing.assert_allclose(ess[10:], 256, rtol=1e-4)  # no heat map: uniform weights
+    assert np.all(ess[1:10] < 256)
+    # Floor: every particle keeps a weight of at least 0.001 / (sum of weights) on heat-map steps.
+    lik = model.observation.log_likelihood(
+        np.array([[50.0, 50.0]], np.float32),
+        hp.Measurements(xy=np.zeros((1, 2), np.float32), weight=np.ones(1, np.float32), valid=np.ones(1, bool)),
+        params.observation,
+    )
+    assert float(lik[0]) == pytest.approx(np.log(1 / np.hypot(50, 50)) if 1 / np.hypot(50, 50) > 0.001
+                                          else np.log(0.001), rel=1e-5)
+
+
+def test_options_validation_names_the_field():
+    for change, field in [({"resampler": "bogus"}, "resampler"), ({"spawn": "normal"}, "spawn"),
+                          ({"observation": "cauchy"}, "observation"), ({"num_particles": 0}, "num_particles"),
+                          ({"k_max": 1.5}, "k_max"), ({"spawn_box": (1.0, 0.0, -1.0, 1.0)}, "spawn_box"),
+                          ({"knn": "kdtree"}, "knn")]:
+        with pytest.raises(ValueError, match=rf"^{field}:"):
+            hp.heatmap_filter(hp.FilterOptions(**change))
