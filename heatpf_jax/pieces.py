@@ -17,7 +17,7 @@ has the field ``xy`` (``[N, 2]`` positions): the motion model decides what else 
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
@@ -63,6 +63,7 @@ class _Piece(Protocol):
     def properties(self) -> NamedTuple: ...
 
 
+@runtime_checkable
 class MotionModel(_Piece, Protocol):
     """Predicts particles one step ahead (III-D) and makes particles from positions."""
 
@@ -72,6 +73,7 @@ class MotionModel(_Piece, Protocol):
     def predict(self, key: PRNGKeyArray, particles: Any, inputs: StepInputs, params: Any) -> Any: ...
 
 
+@runtime_checkable
 class MeasurementSource(_Piece, Protocol):
     """Turns a heat map into a fixed-size :class:`Measurements` of ``size`` slots."""
 
@@ -80,6 +82,7 @@ class MeasurementSource(_Piece, Protocol):
     def measure(self, inputs: StepInputs, params: Any) -> Measurements: ...
 
 
+@runtime_checkable
 class Buffer(_Piece, Protocol):
     """Keeps measurements between heat maps (III-C): moves, ages or replaces them."""
 
@@ -88,6 +91,7 @@ class Buffer(_Piece, Protocol):
     ) -> Measurements: ...
 
 
+@runtime_checkable
 class ObservationModel(_Piece, Protocol):
     """Unnormalised log-likelihood of every particle given the buffer (III-B)."""
 
@@ -96,6 +100,7 @@ class ObservationModel(_Piece, Protocol):
     ) -> Float[Array, " n"]: ...
 
 
+@runtime_checkable
 class Estimator(_Piece, Protocol):
     """The filter's output (III-F) from particles, their weights and their order by weight."""
 
@@ -104,6 +109,7 @@ class Estimator(_Piece, Protocol):
     ) -> Any: ...
 
 
+@runtime_checkable
 class ResamplingStrategy(_Piece, Protocol):
     """Decides whether and how to resample (III-E); see :class:`heatpf_jax.resampling.Resampled`."""
 
@@ -112,6 +118,7 @@ class ResamplingStrategy(_Piece, Protocol):
     ) -> Any: ...
 
 
+@runtime_checkable
 class Injector(_Piece, Protocol):
     """Replaces some particles by new ones (explorers, random particles, hints)."""
 

@@ -1,0 +1,33 @@
+"""Every shipped piece satisfies its stage's protocol, is hashable by value, and its properties
+tree has the structure of its params."""
+
+from __future__ import annotations
+
+import jax
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax import pieces
+from heatpf_jax.params import Param, validate
+
+PIECES = [
+    (pieces.MotionModel, [hp.RandomWalk(), hp.DiffusionOnly()]),
+    (pieces.MeasurementSource, [hp.PixelSource(), hp.ClusterCentreSource()]),
+    (pieces.Buffer, [hp.AgingBuffer(), hp.LatestOnly()]),
+    (pieces.ObservationModel, [hp.InverseDistance(), hp.GaussianKernel(), hp.Floored(hp.InverseDistance())]),
+    (pieces.Estimator, [hp.TopFraction()]),
+    (pieces.ResamplingStrategy, [hp.ESSResampling(r) for r in hp.RESAMPLERS.values()]),
+    (pieces.Injector, [hp.UniformExplorers(), hp.GaussianExplorers()]),
+]
+
+
+@pytest.mark.parametrize("protocol, instances", PIECES, ids=[p.__name__ for p, _ in PIECES])
+def test_pieces_satisfy_their_protocol(protocol, instances):
+    for piece in instances:
+        assert isinstance(piece, protocol), piece
+        assert hash(piece) == hash(type(piece)(*piece.__dict__.values()))  # by value, so jit caches hit
+        params, props = piece.default_params(), piece.properties()
+        assert jax.tree.structure(params) == jax.tree.structure(props, is_leaf=lambda x: isinstance(x, Param))
+        for leaf in jax.tree.leaves(props, is_leaf=lambda x: isinstance(x, Param)):
+            assert isinstance(leaf, Param)
+        validate(params, props)  # the defaults satisfy their own constraints
