@@ -75,6 +75,7 @@ from heatpf_jax.resampling import (
 from heatpf_jax.rollout import RunResult, run, stack_params, validate_params
 from heatpf_jax.sequence import Sequence, SequenceError, load_sequence, save_sequence, validate_sequence
 from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
+from heatpf_jax.tracker import Tracker
 
 __version__ = "0.1.0"
 
@@ -118,6 +119,7 @@ __all__ = [
     "StepInputs",
     "TopFraction",
     "TopFractionParams",
+    "Tracker",
     "UniformBox",
     "UniformExplorers",
     "age_measurements",

@@ -1,4 +1,10 @@
-"""The ``heatpf`` command: ``heatpf demo`` and ``heatpf run``."""
+"""The ``heatpf`` command: ``run``, ``eval``, ``sweep``, ``demo`` and ``params``.
+
+A user's files come first: every check (settings, paths, burn-in, seeds) runs before anything is
+loaded, simulated or compiled; an existing output is replaced only with ``--force`` (the input never);
+a sweep resumes a CSV only when the CSV's own record of what produced it matches the command. JAX's
+persistent compilation cache (:mod:`heatpf_jax.cache`) makes a second run of the same shapes start fast.
+"""
 
 from __future__ import annotations
 
@@ -10,122 +16,59 @@ from pathlib import Path
 
 import numpy as np
 
-from heatpf_jax.files import write_atomic
+from heatpf_jax.evaluate import DEFAULT_BURN_IN
+from heatpf_jax.files import check_input, check_output, check_output_dir, write_atomic
+from heatpf_jax.settings import (
+    LIST_PARAMS,
+    check_burn_in,
+    checked_settings,
+    format_value,
+    full_name,
+    grid_config,
+    method_names,
+    method_with_settings,
+    parse_grid,
+    parse_seeds,
+    parse_settings,
+    scenario_names,
+    unused_options,
+)
+from heatpf_jax.sweep_record import RECORD_INTRO, grid_key, read_done, sweep_record
 
-__all__ = ["error_stats", "grid_config", "main", "parse_settings", "write_estimates_csv"]
+__all__ = [
+    "CSV_HEADER",
+    "DEFAULT_BURN_IN",
+    "describe_method",
+    "error_stats",
+    "grid_config",
+    "main",
+    "parse_grid",
+    "parse_seeds",
+    "parse_settings",
+    "write_estimates_csv",
+]
 
 CSV_HEADER = "t,x,y,cov_xx,cov_xy,cov_yy"
-# Names of earlier versions, still accepted by --set and --grid.
-_ALIASES = {"kalman_accel_std": "accel_std", "kalman_meas_std": "meas_std"}
+_INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C (128 + SIGINT)
 
 
-def _method_names() -> list[str]:
-    from heatpf_jax.presets import METHODS
-
-    return list(METHODS)
+# --------------------------------------------------------------------------------------------- names
 
 
-def _param_of(name: str, methods, options, typed: str | None = None):
-    """The :class:`~heatpf_jax.params.Param` that ``name`` refers to in the first of ``methods`` that has it.
+# --------------------------------------------------------------------------------------------- paths
 
-    ``typed`` is the name as the user wrote it (a legacy alias), for the error message.
+
+# ------------------------------------------------------------------------------------------- results
+
+
+def error_stats(estimates: np.ndarray, truth: np.ndarray, burn_in: int = 0) -> dict[str, float]:
+    """Mean, max and std of the Euclidean error after the first ``burn_in`` steps, metres (Table I's columns).
+
+    The same definition as ``heatpf eval`` and ``heatpf demo`` (:meth:`heatpf_jax.evaluate.MethodResult.stats`).
     """
-    import jax
-
-    from heatpf_jax import params as P
-    from heatpf_jax.presets import build
-
-    known = []
-    for method in methods:
-        props = build(method, options).model.properties()
-        names = P.leaf_names(props)
-        full = P.resolve_name(name, names)
-        if full is not None:
-            return jax.tree.leaves(props, is_leaf=lambda x: isinstance(x, P.Param))[names.index(full)]
-        known += [n for n in names if n not in known]
-    where = f"method {methods[0]}" if len(methods) == 1 else "any method"
-    raise ValueError(f"{typed or name}: not a parameter of {where} (known: {', '.join(known)}; static options: "
-                     f"{', '.join(_options_fields())})")
-
-
-def _options_fields() -> tuple[str, ...]:
-    from heatpf_jax.presets import FilterOptions
-
-    return FilterOptions._fields
-
-
-def parse_settings(assignments: list[str], methods=("heatmap",)):
-    """Parses ``--set name=value`` items into static options and parameter settings.
-
-    A name is a :class:`~heatpf_jax.presets.FilterOptions` field (``num_particles``, ``resampler``,
-    ...) or a parameter of one of ``methods``, dotted (``motion.diffusion_std``) or by its last
-    part where that is unambiguous (``diffusion_std``). A ``k`` above the default ``k_max`` raises
-    ``k_max``, unless ``k_max`` was given too.
-
-    Returns:
-        ``(options, settings)``: a :class:`~heatpf_jax.presets.FilterOptions` and ``{name: value}``.
-
-    Raises:
-        ValueError: naming the field when it is unknown or its value does not parse.
-    """
-    from heatpf_jax.presets import FilterOptions, validate_options
-
-    o_updates, raw = {}, {}
-    for item in assignments:
-        name, sep, value = item.partition("=")
-        name = name.strip()
-        if not sep or not name:
-            raise ValueError(f"--set: expected name=value, got {item!r}")
-        if name in FilterOptions._fields:
-            default = FilterOptions._field_defaults[name]
-            if name == "spawn_box":
-                parts = value.split(",")
-                if len(parts) != 4:
-                    raise ValueError(f"spawn_box: expected x_min,x_max,y_min,y_max, got {value!r}")
-                o_updates[name] = tuple(_parse(name, p, float) for p in parts)
-            else:
-                o_updates[name] = _parse(name, value, type(default))
-        else:
-            raw[name] = value
-    options = FilterOptions()._replace(**o_updates)
-    validate_options(options)
-    settings = {}
-    for typed, value in raw.items():
-        name = _ALIASES.get(typed, typed)
-        prop = _param_of(name, list(methods), options, typed)
-        settings[name] = _parse(typed, value, int if prop.integer else float)
-    k = settings.get("k")
-    if "k_max" not in o_updates and isinstance(k, int) and k > options.k_max:
-        options = options._replace(k_max=k)
-    return options, settings
-
-
-def grid_config(options, grid: dict[str, list], assignments: list[str]):
-    """The sweep's options: ``k_max`` raised to the grid's largest k (one compilation covers the
-    whole grid), unless ``--set k_max=...`` was given."""
-    if "k" in grid and not any(item.partition("=")[0].strip() == "k_max" for item in assignments):
-        options = options._replace(k_max=max(options.k_max, *grid["k"]))
-    return options
-
-
-def _parse(name: str, raw: str, kind: type):
-    raw = raw.strip()
-    try:
-        if kind is int:
-            value = float(raw)
-            if value != int(value):
-                raise ValueError
-            return int(value)
-        if kind is float:
-            return float(raw)
-        return raw
-    except ValueError:
-        raise ValueError(f"{name}: expected {kind.__name__}, got {raw!r}") from None
-
-
-def error_stats(estimates: np.ndarray, truth: np.ndarray) -> dict[str, float]:
-    """Mean, max and std of the Euclidean error, metres (the paper's Table I columns)."""
-    err = np.linalg.norm(np.asarray(estimates, np.float64) - np.asarray(truth, np.float64), axis=1)
+    err = np.linalg.norm(np.asarray(estimates, np.float64) - np.asarray(truth, np.float64), axis=1)[burn_in:]
+    if err.size == 0:
+        raise ValueError(f"burn_in: {burn_in} leaves no step of the {len(estimates)} steps")
     return {"mean": float(err.mean()), "max": float(err.max()), "std": float(err.std())}
 
 
@@ -143,26 +86,7 @@ def write_estimates_csv(path: str | os.PathLike, mean: np.ndarray, cov: np.ndarr
     write_atomic(path, write)
 
 
-def _settings(args, methods):
-    """Parses and checks --set for every method before any data is loaded or simulated."""
-    from heatpf_jax import params as P
-    from heatpf_jax.presets import build
-    from heatpf_jax.rollout import validate_params
-
-    options, settings = parse_settings(args.set or [], methods)
-    for method in methods:
-        model, params = build(method, options)
-        validate_params(P.set_by_name(params, model.properties(), settings, skip_unknown=True), model)
-    return options, settings
-
-
-def _method(method: str, options, settings):
-    """The model of ``method`` and its params with every setting applied (each must be one of its parameters)."""
-    from heatpf_jax import params as P
-    from heatpf_jax.presets import build
-
-    model, params = build(method, options)
-    return model, P.set_by_name(params, model.properties(), settings)
+# ---------------------------------------------------------------------------------------------- run
 
 
 def _run_filter(seq, args, options, settings):
@@ -170,7 +94,7 @@ def _run_filter(seq, args, options, settings):
 
     from heatpf_jax.rollout import run
 
-    model, params = _method(args.method, options, settings)
+    model, params = method_with_settings(args.method, options, settings)
     start = time.perf_counter()
     result = run(jax.random.key(args.seed), seq, params, model)
     mean = np.asarray(result.info.mean)
@@ -182,25 +106,33 @@ def _run_filter(seq, args, options, settings):
     return mean, cov, elapsed
 
 
-def _report(name: str, seq, mean, cov, elapsed: float) -> None:
+def _report(name: str, seq, mean, elapsed: float, burn_in: int) -> None:
     print(
         f"{name}: {seq.num_steps} steps, {int(np.sum(seq.has_heatmap))} heat maps, "
         f"{elapsed:.2f} s (including compilation)"
     )
-    if seq.ground_truth is not None:
-        stats = error_stats(mean, seq.ground_truth)
-        print(f"error [m]: mean {stats['mean']:.4f}  max {stats['max']:.4f}  std {stats['std']:.4f}")
+    if seq.ground_truth is None:
+        print(f"no ground_truth in {name}: no error statistics")
+        return
+    stats = error_stats(mean, seq.ground_truth, burn_in)
+    print(
+        f"error [m] after step {burn_in}: mean {stats['mean']:.4f}  max {stats['max']:.4f}  std {stats['std']:.4f}"
+    )
 
 
 def _cmd_run(args) -> int:
     from heatpf_jax.sequence import load_sequence
 
-    options, settings = _settings(args, [args.method])
+    options, settings = checked_settings(args, [args.method])
+    check_burn_in(args.burn_in)
+    out = check_output("--output", args.output, inputs=[args.input], replace=args.force)
     seq = load_sequence(args.input)
+    if seq.ground_truth is not None:
+        check_burn_in(args.burn_in, seq.num_steps)
     mean, cov, elapsed = _run_filter(seq, args, options, settings)
-    write_estimates_csv(args.output, mean, cov)
-    _report(str(args.input), seq, mean, cov, elapsed)
-    print(f"wrote {args.output}")
+    write_estimates_csv(out, mean, cov)
+    _report(str(args.input), seq, mean, elapsed, args.burn_in)
+    print(f"wrote {out}")
     return 0
 
 
@@ -209,9 +141,11 @@ def _cmd_demo(args) -> int:
     from heatpf_jax.sim import simulate
 
     variants = DEFAULT_VARIANTS[:4]
-    options, settings = _settings(args, [v.method for v in variants])
+    options, settings = checked_settings(args, [v.method for v in variants])
     if args.steps < 1:
         raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    check_burn_in(args.burn_in, args.steps)
+    out = None if args.output is None else check_output("--output", args.output, replace=args.force)
     print("heatpf demo: simulated 'standard' scenario (static robot, 200x150 heat map every step, 10 Hz);")
     print("the short version of `heatpf eval` (one scenario, one sequence)")
     start = time.perf_counter()
@@ -223,54 +157,69 @@ def _cmd_demo(args) -> int:
         settings=settings,
         variants=variants,
         seed=args.seed,
-        burn_in=min(10, args.steps - 1),
+        burn_in=args.burn_in,
     )
     print(format_table(result))
     print(f"({time.perf_counter() - start:.1f} s including compilation)")
-    if args.output:
-        write_estimates_csv(args.output, result.methods[0].estimates[0], np.zeros((args.steps, 2, 2)))
-        print(f"wrote {args.output} (heatmap estimates; covariances are in `heatpf run`)")
+    if out is not None:
+        write_estimates_csv(out, result.methods[0].estimates[0], np.zeros((args.steps, 2, 2)))
+        print(f"wrote {out} (heatmap estimates; covariances are in `heatpf run`)")
     return 0
+
+
+# --------------------------------------------------------------------------------------------- eval
+
+
+def _eval_jobs(args) -> tuple[list[tuple[str, str | None]], range, int | None]:
+    """``[(name, scenario or None for --input)]``, the seeds and the steps per sequence (None: the file's)."""
+    from heatpf_jax.sim.scenarios import DEFAULT_NUM_STEPS
+
+    if args.input:
+        options = (("--scenario", args.scenario), ("--seeds", args.seeds), ("--steps", args.steps))
+        given = [o for o, v in options if v is not None]
+        if given:
+            raise ValueError(f"{given[0]}: applies to the simulated scenarios, not to --input")
+        check_input(args.input)
+        return [(Path(args.input).stem, None)], range(1), None
+    names = args.scenario or list(scenario_names())
+    unknown = [n for n in names if n not in scenario_names()]
+    if unknown:
+        raise ValueError(f"--scenario: unknown {unknown[0]!r} (known: {', '.join(scenario_names())})")
+    seeds = parse_seeds(args.seeds, 5)
+    if args.steps is not None and args.steps < 1:
+        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    return [(n, n) for n in names], seeds, DEFAULT_NUM_STEPS if args.steps is None else args.steps
 
 
 def _cmd_eval(args) -> int:
     from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table, plot_scenario
     from heatpf_jax.sequence import load_sequence
-    from heatpf_jax.sim import SCENARIOS, simulate
+    from heatpf_jax.sim import simulate
 
-    options, settings = _settings(args, sorted({v.method for v in DEFAULT_VARIANTS}))
-    if args.input:
-        jobs = [(Path(args.input).stem, None)]
-    else:
-        names = args.scenario or list(SCENARIOS)
-        unknown = [n for n in names if n not in SCENARIOS]
-        if unknown:
-            raise ValueError(f"--scenario: unknown {unknown[0]!r} (known: {', '.join(SCENARIOS)})")
-        jobs = [(n, n) for n in names]
-    if args.seeds < 1:
-        raise ValueError(f"--seeds: must be >= 1, got {args.seeds}")
-    if args.steps is not None and args.steps < 1:
-        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    options, settings = checked_settings(args, sorted({v.method for v in DEFAULT_VARIANTS}))
+    jobs, seeds, steps = _eval_jobs(args)
+    check_burn_in(args.burn_in, steps)
     if args.plot:
         import importlib.util
 
         if importlib.util.find_spec("matplotlib") is None:
             raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"')
+        check_output_dir(args.plot)
 
-    seqs_per_job = 1 if args.input else args.seeds
-    total = len(jobs) * (seqs_per_job + len(DEFAULT_VARIANTS))
+    total = len(jobs) * (len(seeds) + len(DEFAULT_VARIANTS))
     bar = _progress(total)
-    tables, written = [], []
+    written = []
     try:
         for name, scenario in jobs:
             if scenario is None:
                 sequences = [load_sequence(args.input)]
+                check_burn_in(args.burn_in, sequences[0].num_steps)
                 bar.update(1)
             else:
                 sequences = []
-                for seed in range(args.seeds):
+                for seed in seeds:
                     bar.set_description(f"{name} seed {seed}")
-                    sequences.append(simulate(scenario, seed, num_steps=args.steps))
+                    sequences.append(simulate(scenario, seed, num_steps=steps))
                     bar.update(1)
 
             def tick(label: str) -> None:
@@ -281,8 +230,7 @@ def _cmd_eval(args) -> int:
                 name, sequences, options=options, settings=settings, seed=args.seed, burn_in=args.burn_in,
                 progress=tick
             )
-            tables.append(format_table(result))
-            bar.write(tables[-1] + "\n")
+            bar.write(format_table(result) + "\n")
             if args.plot:
                 written += plot_scenario(result, args.plot)
     finally:
@@ -292,102 +240,102 @@ def _cmd_eval(args) -> int:
     return 0
 
 
-def parse_grid(items: list[str], method: str = "heatmap") -> dict[str, list]:
-    """Parses ``--grid name=v1,v2,...`` into ``{name: [values]}`` (parameters of ``method`` only).
+# -------------------------------------------------------------------------------------------- sweep
 
-    Raises:
-        ValueError: naming the field when it is unknown, static, repeated or a value does not parse.
-    """
-    from heatpf_jax.presets import FilterOptions
+def _sweep_inputs(args) -> tuple[range, int | None]:
+    """Checks --input/--scenario/--seeds/--steps; the seeds and steps of the scenario (None for a file)."""
+    from heatpf_jax.sim.scenarios import DEFAULT_NUM_STEPS
 
-    grid: dict[str, list] = {}
-    for item in items:
-        name, sep, raw = item.partition("=")
-        name = name.strip()
-        if not sep or not name or not raw.strip():
-            raise ValueError(f"--grid: expected name=v1,v2,..., got {item!r}")
-        if name in FilterOptions._fields:
-            raise ValueError(f"{name}: a static option cannot be swept in one compilation; use --set")
-        typed, name = name, _ALIASES.get(name, name)
-        prop = _param_of(name, [method], FilterOptions(), typed)
-        if name in grid:
-            raise ValueError(f"{name}: given twice in --grid")
-        grid[name] = [_parse(name, v, int if prop.integer else float) for v in raw.split(",")]
-    if not grid:
-        raise ValueError("--grid: give at least one name=v1,v2,...")
-    return grid
+    if (args.input is None) == (args.scenario is None):
+        raise ValueError("sweep: give either INPUT.npz or --scenario NAME")
+    if args.input is not None:
+        given = [o for o, v in (("--seeds", args.seeds), ("--steps", args.steps)) if v is not None]
+        if given:
+            raise ValueError(f"{given[0]}: applies to --scenario, not to an input file")
+        check_input(args.input)
+        return range(1), None
+    if args.scenario not in scenario_names():
+        raise ValueError(f"--scenario: unknown {args.scenario!r} (known: {', '.join(scenario_names())})")
+    if args.steps is not None and args.steps < 1:
+        raise ValueError(f"--steps: must be >= 1, got {args.steps}")
+    return parse_seeds(args.seeds, 1), DEFAULT_NUM_STEPS if args.steps is None else args.steps
 
 
-def _grid_key(values) -> tuple[str, ...]:
-    return tuple(f"{float(v):.9g}" for v in values)
-
-
-def _read_done(path: Path, columns: list[str]) -> dict[tuple[str, ...], list[str]]:
-    """Rows already in a sweep CSV, keyed by their parameter values; checks the header."""
-    if not path.exists() or path.stat().st_size == 0:
-        return {}
-    lines = path.read_text().splitlines()
-    header = lines[0].split(",") if lines else []
-    if header != columns:
-        raise ValueError(
-            f"--output: {path} exists with columns {header}, this sweep writes {columns}; "
-            "use another file to start a different sweep"
-        )
-    done = {}
-    n_params = len(columns) - 4
-    for line in lines[1:]:
-        cells = line.split(",")
-        if len(cells) != len(columns):
-            continue  # a row cut short by an interruption: recompute it
-        done[_grid_key(cells[1 : 1 + n_params])] = cells
-    return done
+def _check_grid_against_settings(grid: dict, settings: dict, method: str, options) -> None:
+    in_grid = {full_name(n, method, options) for n in grid}
+    both = [n for n in settings if full_name(n, method, options) in in_grid]
+    if both:
+        raise ValueError(f"{both[0]}: given in both --set and --grid; keep one")
 
 
 def _cmd_sweep(args) -> int:
     import itertools
 
-    import jax
-
     from heatpf_jax import params as P
-    from heatpf_jax.rollout import stack_params, validate_params
+    from heatpf_jax.rollout import validate_params
     from heatpf_jax.sequence import load_sequence
-    from heatpf_jax.sim import SCENARIOS, simulate
-    from heatpf_jax.sweep import sweep
+    from heatpf_jax.sim import simulate
 
-    options, settings = _settings(args, [args.method])
+    options, settings = checked_settings(args, [args.method])
     grid = parse_grid(args.grid or [], args.method)
+    _check_grid_against_settings(grid, settings, args.method, options)
     options = grid_config(options, grid, args.set or [])
-    model, params = _method(args.method, options, settings)
-    if (args.input is None) == (args.scenario is None):
-        raise ValueError("sweep: give either INPUT.npz or --scenario NAME")
-    if args.scenario is not None and args.scenario not in SCENARIOS:
-        raise ValueError(f"--scenario: unknown {args.scenario!r} (known: {', '.join(SCENARIOS)})")
-    if args.seeds < 1 or args.batch_size < 1:
-        raise ValueError("--seeds and --batch-size: must be >= 1")
+    model, params = method_with_settings(args.method, options, settings)
+    seeds, steps = _sweep_inputs(args)
+    if args.batch_size < 1:
+        raise ValueError(f"--batch-size: must be >= 1, got {args.batch_size}")
+    if args.top < 0:
+        raise ValueError(f"--top: must be >= 0, got {args.top}")
+    check_burn_in(args.burn_in, steps)
+    out = check_output("--output", args.output, inputs=[args.input], replace=True)
     names = list(grid)
     combos = list(itertools.product(*grid.values()))
-    props = model.properties()
-    sets = [P.set_by_name(params, props, dict(zip(names, c, strict=True))) for c in combos]
-    # Check every set before any work.
-    for p in sets:
+    sets = [P.set_by_name(params, model.properties(), dict(zip(names, c, strict=True))) for c in combos]
+    for p in sets:  # every set checked before any work
         validate_params(p, model)
+    grid_names = {full_name(n, args.method, options) for n in names}
+    record = sweep_record(args, seeds, steps, options, model, params, grid_names)
+    columns = ["index", *names, "mean_error", "max_error", "std_error"]
+    done = read_done(out, record, columns)
 
     if args.input is not None:
         sequences = [load_sequence(args.input)]
+        check_burn_in(args.burn_in, sequences[0].num_steps)
     else:
-        sequences = [simulate(args.scenario, seed, num_steps=args.steps) for seed in range(args.seeds)]
+        sequences = [simulate(args.scenario, seed, num_steps=steps) for seed in seeds]
     if any(s.ground_truth is None for s in sequences):
         raise ValueError("ground_truth: the sweep ranks parameter sets by error and needs ground truth")
-    burn_in = min(args.burn_in, sequences[0].num_steps - 1)
 
-    out = Path(args.output)
-    columns = ["index", *names, "mean_error", "max_error", "std_error"]
-    done = _read_done(out, columns)
-    todo = [i for i, c in enumerate(combos) if _grid_key(c) not in done]
-    # Start (or restart) the file with its header and the complete rows only: a row cut short by an
-    # interruption is dropped and recomputed. Written atomically, so the finished rows are never at risk.
-    text = "".join(",".join(r) + "\n" for r in [columns, *done.values()])
+    # Start (or restart) the file with its record, its header and the complete rows only: a row cut short
+    # by an interruption is dropped and recomputed. Written atomically, so the finished rows are never at risk.
+    lines = [RECORD_INTRO, *(f"# {n} = {v}" for n, v in record), ",".join(columns)]
+    text = "".join(line + "\n" for line in lines + [",".join(r) for r in done.values()])
     write_atomic(out, lambda fh: fh.write(text))
+    todo = [i for i, c in enumerate(combos) if grid_key(c) not in done]
+    try:
+        _sweep_rows(args, out, model, sets, combos, todo, sequences, len(done))
+    except _Interrupted as stop:
+        print(f"interrupted: {stop.saved} rows saved in {out}; run the same command to resume", file=sys.stderr)
+        return _INTERRUPTED
+    _print_best(out, record, columns, args.top, args.burn_in)
+    return 0
+
+
+class _Interrupted(Exception):
+    """Ctrl-C during a sweep, after ``saved`` rows were safely in the file."""
+
+    def __init__(self, saved: int):
+        super().__init__(saved)
+        self.saved = saved
+
+
+def _sweep_rows(args, out: Path, model, sets, combos, todo: list[int], sequences, saved: int) -> None:
+    """Computes the rows ``todo`` a batch at a time, appending each batch to ``out`` as it completes."""
+    import jax
+
+    from heatpf_jax.rollout import stack_params
+    from heatpf_jax.sweep import sweep
+
     n_dev = len(jax.local_devices())
     per_call = args.batch_size * n_dev
     print(
@@ -406,7 +354,7 @@ def _cmd_sweep(args) -> int:
             for seq in sequences:
                 info = sweep(key, seq, batch, model, chunk=args.batch_size)
                 est = np.asarray(info.mean, np.float64)[: len(ids)]
-                errors.append(np.linalg.norm(est - seq.ground_truth[None], axis=-1)[:, burn_in:])
+                errors.append(np.linalg.norm(est - seq.ground_truth[None], axis=-1)[:, args.burn_in :])
             err = np.concatenate(errors, axis=1)
             if not np.all(np.isfinite(err)):
                 raise RuntimeError("the filter produced a non-finite estimate; please report this")
@@ -415,19 +363,104 @@ def _cmd_sweep(args) -> int:
                     e = err[row]
                     values = ",".join(f"{v:.9g}" for v in combos[i])
                     fh.write(f"{i},{values},{e.mean():.6f},{e.max():.6f},{e.std():.6f}\n")
-                fh.flush()
+            saved += len(ids)
             bar.update(len(ids))
+    except KeyboardInterrupt:
+        raise _Interrupted(saved) from None
     finally:
         bar.close()
 
-    rows = list(_read_done(out, columns).values())
+
+def _print_best(out: Path, record, columns: list[str], top: int, burn_in: int) -> None:
+    rows = list(read_done(out, record, columns).values())
     rows.sort(key=lambda r: float(r[-3]))
     print(f"best of {len(rows)} by mean error (errors after step {burn_in}, metres):")
     print("  " + "  ".join(f"{c:>12}" for c in columns[1:]))
-    for r in rows[: args.top]:
+    for r in rows[:top]:
         print("  " + "  ".join(f"{c:>12}" for c in r[1:]))
     print(f"all results: {out}")
+
+
+# ------------------------------------------------------------------------------------------- params
+
+
+def _option_choices() -> dict[str, str]:
+    from heatpf_jax.observation import KNN_METHODS
+    from heatpf_jax.presets import OBSERVATIONS, RESAMPLERS, SPAWNS
+
+    return {
+        "resampler": "one of " + ", ".join(sorted(RESAMPLERS)),
+        "spawn": "one of " + ", ".join(SPAWNS),
+        "spawn_box": "x_min,x_max,y_min,y_max (metres)",
+        "observation": "one of " + ", ".join(OBSERVATIONS),
+        "knn": "one of " + ", ".join(KNN_METHODS),
+    }
+
+
+def _table(rows: list[tuple[str, ...]]) -> list[str]:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+
+
+def describe_method(method: str, options=None, settings: dict | None = None) -> str:
+    """Every parameter of ``method`` (dotted name, value, allowed range, trainable or frozen) and the static options.
+
+    Args:
+        method: a name in ``heatpf_jax.presets.METHODS``.
+        options: the static options (default :class:`~heatpf_jax.presets.FilterOptions()`).
+        settings: ``{name: value}`` applied to the defaults first.
+
+    Returns:
+        The text ``heatpf params`` prints.
+    """
+    import jax
+
+    from heatpf_jax import params as P
+    from heatpf_jax.presets import FilterOptions
+
+    options = FilterOptions() if options is None else options
+    model, params = method_with_settings(method, options, settings or {})
+    props = model.properties()
+    rows = [("name", "value", "allowed", "tuning")]
+    for name, value, prop in zip(
+        P.leaf_names(props), jax.tree.leaves(params), jax.tree.leaves(props, is_leaf=lambda x: isinstance(x, P.Param)),
+        strict=True,
+    ):
+        rows.append((name, format_value(value), prop.describe(), "trainable" if prop.trainable else "frozen"))
+    unused = set(unused_options(FilterOptions()._replace(**{f: _other(f) for f in FilterOptions._fields}), [method]))
+    choices = _option_choices()
+    o_rows = [("name", "value", "allowed")]
+    for name, value in options._asdict().items():
+        note = choices.get(name, "a positive integer")
+        o_rows.append((name, format_value(value), note + (f" (not used by {method})" if name in unused else "")))
+    first, value = rows[1][0], rows[1][1]
+    return "\n".join([
+        f"parameters of {method} (--set NAME=VALUE, or --grid NAME=V1,V2 in `heatpf sweep`; the last part of a",
+        f"name is enough where it is unambiguous: --set {first.rsplit('.', 1)[-1]}={value} sets {first}):",
+        *_table(rows),
+        "static options (--set NAME=VALUE; each value compiles its own program, so they cannot be swept):",
+        *_table(o_rows),
+    ])
+
+
+def _other(field: str):
+    """A valid value of an option other than its default (to find the options a method does not use)."""
+    from heatpf_jax.presets import FilterOptions
+
+    others = {"resampler": "residual", "spawn": "gaussian", "spawn_box": (0.0, 1.0, 0.0, 1.0),
+              "observation": "gaussian", "knn": "dense"}
+    if field in others:
+        return others[field]
+    return FilterOptions._field_defaults[field] + 1
+
+
+def _cmd_params(args) -> int:
+    options, settings = checked_settings(args, [args.method])
+    print(describe_method(args.method, options, settings))
     return 0
+
+
+# -------------------------------------------------------------------------------------------- parser
 
 
 def _progress(total: int):
@@ -437,72 +470,160 @@ def _progress(total: int):
     return tqdm(total=total, file=sys.stderr, dynamic_ncols=True, leave=False, mininterval=0.5, disable=None)
 
 
+def _add_set(p, what: str = "a parameter") -> None:
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="NAME=VALUE",
+        help=f"{what} (dotted, e.g. motion.diffusion_std, or its last part: diffusion_std) or a static option "
+        f"(num_particles, resampler, ...), repeatable, e.g. --set k=3; {LIST_PARAMS}",
+    )
+
+
+def _add_burn_in(p) -> None:
+    p.add_argument(
+        "--burn-in",
+        type=int,
+        default=DEFAULT_BURN_IN,
+        help=f"first steps left out of the error statistics (default {DEFAULT_BURN_IN}, as in every command)",
+    )
+
+
+def _add_method(p, verb: str = "run") -> None:
+    p.add_argument(
+        "--method", choices=method_names(), default="heatmap", help=f"filter method to {verb} (default heatmap)"
+    )
+
+
+def _global_options() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="do not use the compilation cache (~/.cache/heatpf_jax/jax, or $HEATPF_CACHE_DIR; "
+        "HEATPF_NO_CACHE=1 does the same)",
+    )
+    return parent
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="heatpf", description="Heat-map particle filter in Cartesian space (JAX).")
+    parser = argparse.ArgumentParser(
+        prog="heatpf",
+        description="Heat-map particle filter in Cartesian space (JAX).",
+        epilog="Compiled programs are cached on disk (~/.cache/heatpf_jax/jax; $HEATPF_CACHE_DIR moves it), so a "
+        "second run of the same shapes starts fast; --no-cache or HEATPF_NO_CACHE=1 turns that off.",
+    )
+    parser.add_argument(
+        "--no-cache", dest="no_cache_global", action="store_true", help="as the subcommands' --no-cache"
+    )
     sub = parser.add_subparsers(dest="command", required=True)
+    parent = [_global_options()]
+    scenarios = ", ".join(scenario_names())
 
-    def common(p):
-        p.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
-        p.add_argument(
-            "--set",
-            action="append",
-            metavar="NAME=VALUE",
-            help="a parameter (dotted, e.g. motion.diffusion_std, or its last part: diffusion_std) or a static "
-            "option (num_particles, resampler, ...), repeatable, e.g. --set k=3",
-        )
-
-    def method(p):
-        p.add_argument("--method", choices=_method_names(), default="heatmap", help="filter method (default heatmap)")
-
-    p_run = sub.add_parser("run", help="run the filter on a version-1 sequence file")
+    p_run = sub.add_parser(
+        "run", parents=parent, help="run the filter on a version-1 sequence file",
+        epilog="Parameter names, defaults and ranges: heatpf params --method NAME.",
+    )
     p_run.add_argument("input", help="sequence file (.npz, version 1)")
-    p_run.add_argument("--output", "-o", required=True, help="CSV with t,x,y,cov_xx,cov_xy,cov_yy")
-    common(p_run)
-    method(p_run)
+    p_run.add_argument("--output", "-o", required=True, help="CSV with t,x,y,cov_xx,cov_xy,cov_yy (not replaced "
+                       "if it exists, unless --force)")
+    p_run.add_argument("--force", action="store_true", help="replace an existing --output")
+    p_run.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
+    _add_burn_in(p_run)
+    _add_set(p_run)
+    _add_method(p_run)
     p_run.set_defaults(func=_cmd_run)
 
-    p_eval = sub.add_parser("eval", help="the paper's comparison (Table I, Fig. 4, Fig. 6) on every scenario")
-    p_eval.add_argument("--scenario", action="append", help="a scenario (repeatable; default: all)")
+    p_eval = sub.add_parser(
+        "eval", parents=parent, help="the paper's comparison (Table I, Fig. 4, Fig. 6) on every scenario",
+        epilog=f"Scenarios: {scenarios}.",
+    )
+    p_eval.add_argument("--scenario", action="append", help=f"a scenario, repeatable (default: all): {scenarios}")
     p_eval.add_argument("--input", help="evaluate a recording (.npz with ground_truth) instead of the scenarios")
-    p_eval.add_argument("--seeds", type=int, default=5, help="sequences per scenario (default 5)")
+    p_eval.add_argument("--seeds", metavar="N|START:STOP", help="sequences per scenario: N (seeds 0..N-1, "
+                        "default 5) or START:STOP (e.g. 200:216)")
     p_eval.add_argument("--steps", type=int, default=None, help="steps per sequence (default: the scenario's, 300)")
-    p_eval.add_argument("--burn-in", type=int, default=10, help="first steps left out of the statistics (default 10)")
-    p_eval.add_argument("--plot", metavar="DIR", help="write Fig. 4 and Fig. 6 per scenario as PNG into DIR")
+    _add_burn_in(p_eval)
+    p_eval.add_argument("--plot", metavar="DIR", help="write Fig. 4 and Fig. 6 per scenario as PNG into DIR "
+                        "(created if missing; PNGs of the same names there are replaced)")
     p_eval.add_argument("--seed", type=int, default=0, help="PRNG seed of the filters (default 0)")
-    p_eval.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter (repeatable)")
+    _add_set(p_eval, "a parameter of any method")
     p_eval.set_defaults(func=_cmd_eval)
 
-    p_sweep = sub.add_parser("sweep", help="run the cartesian product of parameter grids, ranked by error")
+    p_sweep = sub.add_parser(
+        "sweep", parents=parent, help="run the cartesian product of parameter grids, ranked by error",
+        epilog=f"Scenarios: {scenarios}. The CSV records what produced its rows (# lines); the same command "
+        "resumes it, another one is refused.",
+    )
     p_sweep.add_argument("input", nargs="?", help="sequence file (.npz with ground_truth); or use --scenario")
-    p_sweep.add_argument("--scenario", help="a simulated scenario instead of a file")
+    p_sweep.add_argument("--scenario", help=f"a simulated scenario instead of a file: {scenarios}")
     p_sweep.add_argument("--grid", action="append", metavar="NAME=V1,V2,...", help="a parameter grid (repeatable)")
-    p_sweep.add_argument("--output", "-o", default="sweep.csv", help="results CSV; an existing one is resumed")
-    p_sweep.add_argument("--seeds", type=int, default=1, help="scenario sequences per set (default 1)")
+    p_sweep.add_argument("--output", "-o", default="sweep.csv", help="results CSV (default sweep.csv); an existing "
+                         "one is resumed when it holds this sweep, refused otherwise")
+    p_sweep.add_argument("--seeds", metavar="N|START:STOP", help="scenario sequences per set: N (seeds 0..N-1, "
+                         "default 1) or START:STOP")
     p_sweep.add_argument("--steps", type=int, default=None, help="steps per scenario sequence (default 300)")
     p_sweep.add_argument("--batch-size", type=int, default=16, help="sets vmapped together per device (default 16)")
-    p_sweep.add_argument("--burn-in", type=int, default=10, help="first steps left out of the errors (default 10)")
+    _add_burn_in(p_sweep)
     p_sweep.add_argument("--top", type=int, default=5, help="best sets printed (default 5)")
-    common(p_sweep)
-    method(p_sweep)
+    p_sweep.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
+    _add_set(p_sweep, "a fixed parameter")
+    _add_method(p_sweep, "sweep")
     p_sweep.set_defaults(func=_cmd_sweep)
 
-    p_demo = sub.add_parser("demo", help="a short evaluation on a built-in simulated sequence")
+    p_demo = sub.add_parser("demo", parents=parent, help="a short evaluation on a built-in simulated sequence")
     p_demo.add_argument("--steps", type=int, default=300, help="number of filter steps (default 300)")
-    p_demo.add_argument("--output", "-o", help="optional CSV of the estimates")
-    common(p_demo)
+    _add_burn_in(p_demo)
+    p_demo.add_argument("--output", "-o", help="optional CSV of the estimates (not replaced if it exists, unless "
+                        "--force)")
+    p_demo.add_argument("--force", action="store_true", help="replace an existing --output")
+    p_demo.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
+    _add_set(p_demo, "a parameter of any method")
     p_demo.set_defaults(func=_cmd_demo)
+
+    p_params = sub.add_parser(
+        "params", parents=parent, help="list a method's parameters (names, defaults, ranges) and the static options"
+    )
+    _add_method(p_params, "describe")
+    p_params.add_argument("--set", action="append", metavar="NAME=VALUE",
+                          help="show the values with these settings (e.g. --set observation=gaussian)")
+    p_params.set_defaults(func=_cmd_params)
+
+    from heatpf_jax import rosbag_import
+
+    rosbag_import.add_parser(sub)
     return parser
 
 
+def _os_error_text(err: OSError) -> str:
+    where = f"{err.filename}: " if err.filename else ""
+    return f"{where}{err.strerror or err}"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``heatpf`` console script."""
+    """Entry point of the ``heatpf`` console script.
+
+    Returns:
+        0 on success; 2 after a one-line ``heatpf: error: ...`` on stderr; 130 when interrupted (Ctrl-C).
+    """
+    from heatpf_jax.cache import compilation_cache
     from heatpf_jax.sequence import SequenceError
 
     args = _build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with compilation_cache(enabled=not (args.no_cache or args.no_cache_global)):
+            return args.func(args)
+    except KeyboardInterrupt:
+        print("heatpf: interrupted", file=sys.stderr)
+        return _INTERRUPTED
     except (SequenceError, ValueError, TypeError, RuntimeError) as err:
         print(f"heatpf: error: {err}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # `heatpf params | head`: the reader left; say nothing more
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except OSError as err:
+        print(f"heatpf: error: {_os_error_text(err)}", file=sys.stderr)
         return 2
 
 

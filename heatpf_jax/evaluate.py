@@ -21,6 +21,7 @@ from heatpf_jax.rollout import run
 from heatpf_jax.sequence import Sequence
 
 __all__ = [
+    "DEFAULT_BURN_IN",
     "DEFAULT_VARIANTS",
     "MethodResult",
     "ScenarioResult",
@@ -39,6 +40,8 @@ class Variant:
     method: str
     overrides: dict = field(default_factory=dict)
 
+
+DEFAULT_BURN_IN = 10  # steps left out of every error statistic (the filter converging from its prior)
 
 DEFAULT_VARIANTS = (
     Variant("heatmap", "heatmap"),
@@ -97,7 +100,7 @@ def evaluate_sequences(
     settings: dict | None = None,
     variants: Iterable[Variant] = DEFAULT_VARIANTS,
     seed: int = 0,
-    burn_in: int = 10,
+    burn_in: int = DEFAULT_BURN_IN,
     progress: Callable[[str], None] | None = None,
 ) -> ScenarioResult:
     """Runs every variant on every sequence (with ground truth) of one scenario.

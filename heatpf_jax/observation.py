@@ -52,22 +52,24 @@ def k_nearest(
     k: Int[ArrayLike, ""],
     *,
     k_max: int | None = None,
-    method: str = "dense",
+    method: str = "auto",
 ) -> tuple[Float[Array, "n kmax"], Float[Array, "n kmax"], Bool[Array, "n kmax"]]:
     """Selects each particle's k nearest valid measurements (the set C_i of eq. 1).
 
-    ``method="dense"`` is the plain formulation and the reference: a full particle x
-    measurement squared-distance matrix followed by ``lax.top_k``. ``"blocked"`` is the
-    exact block-minima kernel of :mod:`heatpf_jax.knn` (same neighbour set up to
-    distance ties, several times faster from a few hundred measurements on);
-    ``"auto"`` picks ``"blocked"`` for buffers of at least ``AUTO_BLOCKED_MIN_SIZE``.
+    All three methods are exact. ``method="dense"`` is the plain formulation and the
+    reference: a full particle x measurement squared-distance matrix followed by
+    ``lax.top_k``. ``"blocked"`` is the block-minima kernel of :mod:`heatpf_jax.knn`
+    (same neighbour set up to distance ties, several times faster from a few hundred
+    measurements on). ``"auto"``, the default, picks ``"blocked"`` for buffers of at
+    least ``AUTO_BLOCKED_MIN_SIZE`` (256) slots and ``"dense"`` below, so the default
+    is the fastest exact search; pass ``method="dense"`` for the reference.
 
     Args:
         particles: ``[N, 2]`` positions.
         measurements: a buffer of size ``M``.
         k: number of neighbours, ``1 <= k <= k_max`` (may be traced).
         k_max: static upper bound on ``k``; defaults to ``k`` (then ``k`` must be concrete).
-        method: ``"dense"``, ``"blocked"`` or ``"auto"`` (static).
+        method: ``"auto"`` (default), ``"blocked"`` or ``"dense"`` (the reference); static.
 
     Returns:
         ``(sq_dist, weight, selected)`` each ``[N, min(k_max, M)]``: squared
@@ -106,7 +108,7 @@ def particle_weights(
     *,
     k_max: int | None = None,
     min_distance: Float[ArrayLike, ""] = DEFAULT_MIN_DISTANCE,
-    method: str = "dense",
+    method: str = "auto",
 ) -> Float[Array, " n"]:
     """Eq. (1): for each particle, the sum over its k nearest valid measurements of weight / distance.
 
@@ -116,7 +118,8 @@ def particle_weights(
         k: number of neighbours (may be traced if ``k_max`` is given).
         k_max: static upper bound on ``k``.
         min_distance: distance floor (epsilon), metres.
-        method: neighbour search, ``"dense"`` (reference), ``"blocked"`` or ``"auto"`` (see :func:`k_nearest`).
+        method: exact neighbour search, ``"auto"`` (default: ``"blocked"`` from ``AUTO_BLOCKED_MIN_SIZE``
+            slots on, ``"dense"`` below), ``"blocked"`` or ``"dense"`` (the reference); see :func:`k_nearest`.
 
     Returns:
         ``[N]`` unnormalised weights; all ones when no measurement is valid.
@@ -134,9 +137,18 @@ def gaussian_particle_weights(
     *,
     std: Float[ArrayLike, ""],
     k_max: int | None = None,
-    method: str = "dense",
+    method: str = "auto",
 ) -> Float[Array, " n"]:
     """Gaussian-kernel variant: sum over the k nearest of ``w * exp(-delta^2 / (2 std^2))``.
+
+    Args:
+        particles: ``[N, 2]`` positions.
+        measurements: a buffer of size ``M`` (invalid slots are ignored).
+        k: number of neighbours (may be traced if ``k_max`` is given).
+        std: kernel standard deviation, metres.
+        k_max: static upper bound on ``k``.
+        method: exact neighbour search, ``"auto"`` (default), ``"blocked"`` or ``"dense"`` (the reference);
+            see :func:`k_nearest`.
 
     Returns:
         ``[N]`` unnormalised weights; all ones when no measurement is valid.

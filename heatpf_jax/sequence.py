@@ -11,19 +11,24 @@
 | dt           | float64 []             | filter period, seconds                               |
 | ground_truth | float64 [T, 2], optional | ball (x, y) in the base frame of step t            |
 
-:func:`load_sequence` checks every key and raises :class:`SequenceError` naming
-the key and the problem; :func:`save_sequence` validates first and writes
-atomically (a temporary file renamed into place), so nothing is half-written.
+:func:`load_sequence` checks every key and raises :class:`SequenceError` with one
+line naming the file, the key (where one is at fault) and the problem, also for a
+file it cannot read (empty, damaged, a directory, a .npy array, text, object
+arrays); :func:`save_sequence` validates first and writes atomically (a
+temporary file renamed into place), so nothing is half-written.
 """
 
 from __future__ import annotations
 
+import codecs
 import os
 import zipfile
+import zlib
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from numpy.lib import format as npy_format
 
 from heatpf_jax.files import write_atomic
 
@@ -76,9 +81,13 @@ _REQUIRED = tuple(k for k in _SPEC if k != "ground_truth")
 
 def _check_array(key: str, value, dims: dict[str, int]) -> np.ndarray:
     kind, dtype_name, shape = _SPEC[key]
-    arr = np.asarray(value)
+    try:
+        arr = np.asarray(value)
+    except (ValueError, TypeError):
+        kind_of = type(value).__name__
+        raise SequenceError(f"{key}: cannot be made an array (a {kind_of} of ragged or mixed items)") from None
     if arr.dtype.kind != kind:
-        raise SequenceError(f"{key}: expected dtype {dtype_name}, got {arr.dtype}")
+        raise SequenceError(f"{key}: expected dtype {dtype_name}, got {_dtype_words(arr.dtype)}")
     if arr.ndim != len(shape):
         raise SequenceError(f"{key}: expected shape {_fmt(shape)}, got {arr.shape}")
     for axis, (want, got) in enumerate(zip(shape, arr.shape, strict=True)):
@@ -92,6 +101,21 @@ def _check_array(key: str, value, dims: dict[str, int]) -> np.ndarray:
         bad = np.argwhere(~np.isfinite(arr))[0]
         raise SequenceError(f"{key}: non-finite value at index {tuple(int(i) for i in bad)}")
     return arr
+
+
+_KIND_WORDS = {
+    "U": "text (str)",
+    "S": "bytes",
+    "O": "Python objects (an object array)",
+    "V": "raw or structured records",
+    "M": "dates",
+    "m": "time spans",
+}
+
+
+def _dtype_words(dtype: np.dtype) -> str:
+    """A dtype in plain words: numbers by name (``float32``), the rest by what they hold (``text (str)``)."""
+    return _KIND_WORDS.get(dtype.kind, dtype.name)
 
 
 def _fmt(shape) -> str:
@@ -160,25 +184,111 @@ def validate_sequence(seq: Sequence) -> Sequence:
 def load_sequence(path: str | os.PathLike) -> Sequence:
     """Loads and validates a version-1 sequence file.
 
+    Only the sequence's keys are read; other members of the archive are ignored.
+
     Raises:
-        SequenceError: the file cannot be read as .npz, or breaks the contract
-            (the message names the key and the problem).
+        SequenceError: one line naming the file (and the key at fault, if any) and the
+            problem: a missing, unreadable, empty or damaged file, a file of another
+            kind (a directory, a .npy array, text, a pickle), an object array, or a
+            key that breaks the contract (see :func:`validate_sequence`).
     """
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
-            present = {k: data[k] for k in data.files}
+        present = _read_archive(path)
+        version = present.pop("format_version", None)
+        if version is not None:
+            if version.shape != () or version.dtype.kind not in "iu":
+                raise SequenceError(f"format_version: expected an integer, got {_dtype_words(version.dtype)} "
+                                    f"of shape {version.shape}")
+            if int(version) != FORMAT_VERSION:
+                raise SequenceError(f"format_version: {int(version)} is not supported "
+                                    f"(this reads version {FORMAT_VERSION})")
+        if not present:
+            raise SequenceError(f"a zip archive without any of the sequence keys, not {_WHAT}")
+        missing = [k for k in _REQUIRED if k not in present]
+        if missing:
+            raise SequenceError(f"{missing[0]}: missing (required keys: {', '.join(_REQUIRED)})")
+        return validate_sequence(Sequence(**present))
+    except SequenceError as err:
+        raise SequenceError(f"{path}: {err}") from None
+
+
+_WHAT = f"a sequence file (.npz with the keys {', '.join(_REQUIRED)})"
+# Errors a damaged archive member raises while it is decompressed and parsed.
+# (RuntimeError: an encrypted member; NotImplementedError: an unknown compression.)
+_DAMAGED = (zipfile.BadZipFile, zlib.error, EOFError, ValueError, OSError, RuntimeError, NotImplementedError)
+
+
+def _read_archive(path: Path) -> dict[str, np.ndarray]:
+    """The sequence keys (and ``format_version``) of the .npz at ``path``; a SequenceError without the path."""
+    if path.is_dir():
+        raise SequenceError(f"a directory, not {_WHAT}")
+    try:
+        fh = open(path, "rb")  # closed by the ``with`` below
     except FileNotFoundError:
-        raise SequenceError(f"{path}: no such file") from None
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise SequenceError(f"{path}: not a readable .npz file ({err})") from None
-    missing = [k for k in _REQUIRED if k not in present]
-    if missing:
-        raise SequenceError(f"{missing[0]}: missing from {path.name} (required keys: {', '.join(_REQUIRED)})")
-    version = present.get("format_version")
-    if version is not None and int(version) != FORMAT_VERSION:
-        raise SequenceError(f"format_version: {int(version)} is not supported (this reads version {FORMAT_VERSION})")
-    return validate_sequence(Sequence(**{k: present.get(k) for k in _SPEC}))
+        raise SequenceError("no such file") from None
+    except PermissionError:
+        raise SequenceError("permission denied (this user may not read the file)") from None
+    except OSError as err:
+        raise SequenceError(f"cannot be opened ({err.strerror or type(err).__name__})") from None
+    with fh:
+        try:
+            head = fh.read(512)
+            fh.seek(0)
+        except OSError as err:
+            raise SequenceError(f"cannot be read ({err.strerror or type(err).__name__})") from None
+        if not head.startswith((b"PK\x03\x04", b"PK\x05\x06")):  # a zip archive's first entry, or an empty one
+            raise SequenceError(_kind_of(head))
+        try:
+            archive = zipfile.ZipFile(fh)
+        except (zipfile.BadZipFile, OSError, ValueError):
+            raise SequenceError("a damaged or truncated .npz (zip) archive") from None
+        with archive:
+            members = {name.removesuffix(".npy"): name for name in archive.namelist()}
+            return {key: _read_member(archive, members[key], key)
+                    for key in (*_SPEC, "format_version") if key in members}
+
+
+def _kind_of(head: bytes) -> str:
+    """What a file that is not a zip archive is, from its first bytes."""
+    if not head:
+        return f"an empty file (0 bytes), not {_WHAT}"
+    if head.startswith(b"\x93NUMPY"):
+        return f"a .npy array, not {_WHAT}"
+    if head.startswith(b"\x80"):
+        return f"a Python pickle, not {_WHAT}"
+    try:
+        codecs.getincrementaldecoder("utf-8")().decode(head, final=False)
+        text = b"\x00" not in head
+    except UnicodeDecodeError:
+        text = False
+    return f"a text file, not {_WHAT}" if text else f"not a zip archive, so not {_WHAT}"
+
+
+def _read_member(archive: zipfile.ZipFile, name: str, key: str) -> np.ndarray:
+    """One array of the archive; its dtype is read from the header first so object arrays are never unpickled."""
+    damaged = f"{key}: damaged data (the archive is corrupt or truncated)"
+    try:
+        with archive.open(name) as fh:
+            version = npy_format.read_magic(fh)
+            read_header = npy_format.read_array_header_1_0 if version == (1, 0) else npy_format.read_array_header_2_0
+            _, _, dtype = read_header(fh)
+    except ValueError:  # a header that is not NumPy's
+        raise SequenceError(f"{key}: not a readable NumPy array (damaged, or not written by NumPy)") from None
+    except _DAMAGED:
+        raise SequenceError(damaged) from None
+    if dtype.hasobject:
+        raise SequenceError(f"{key}: expected dtype {_expected_dtype(key)}, got Python objects "
+                            "(an object array; these are never loaded)")
+    try:
+        with archive.open(name) as fh:
+            return npy_format.read_array(fh, allow_pickle=False)
+    except _DAMAGED:
+        raise SequenceError(damaged) from None
+
+
+def _expected_dtype(key: str) -> str:
+    return _SPEC[key][1] if key in _SPEC else "int64"
 
 
 def save_sequence(path: str | os.PathLike, seq: Sequence) -> None:

@@ -1,8 +1,13 @@
 """Shared test settings: strict JAX promotion, small shared sizes so compiled functions are reused."""
 
+import os
+
 import jax
 import numpy as np
 import pytest
+
+# The tests never write JAX's persistent compilation cache into the user's cache directory.
+os.environ.setdefault("HEATPF_NO_CACHE", "1")
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
 jax.config.update("jax_numpy_dtype_promotion", "strict")

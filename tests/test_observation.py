@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
+from heatpf_jax.observation import AUTO_BLOCKED_MIN_SIZE
 
 K_MAX = 8
 N_PART = 200
@@ -362,3 +363,66 @@ def test_observation_pieces_are_logs_of_the_weight_functions():
     np.testing.assert_allclose(np.asarray(floored.log_likelihood(particles, buf, params)), np.maximum(ref, np.log(0.5)),
                                rtol=1e-5)
     assert floored.properties().base == inv.properties()
+
+
+# --------------------------------------------------------------------------- the default search
+
+
+def _all_three(method):
+    """The three public functions at their default ``method`` (None) or at an explicit one, in one compiled call."""
+    kw = {} if method is None else {"method": method}
+
+    def f(particles, meas, k):
+        return (
+            hp.particle_weights(particles, meas, k, k_max=10, **kw),
+            hp.gaussian_particle_weights(particles, meas, k, std=jnp.float32(0.3), k_max=10, **kw),
+            hp.k_nearest(particles, meas, k, k_max=10, **kw),
+        )
+
+    return jax.jit(f)
+
+
+def raster_measurements(rng, side=32, spacing=0.1):
+    """A heat map's measurements: a jittered ``side x side`` ground grid in raster order, 80% valid."""
+    gy, gx = np.meshgrid(np.arange(side) * spacing, np.arange(side) * spacing, indexing="ij")
+    xy = np.stack([gx.ravel(), gy.ravel()], 1) + rng.uniform(-0.3, 0.3, (side * side, 2)) * spacing
+    weight = rng.uniform(0.05, 1.0, side * side)
+    valid = rng.random(side * side) < 0.8
+    weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum()))  # garbage the search must skip
+    return xy.astype(np.float32), weight.astype(np.float32), valid
+
+
+def test_default_method_is_the_exact_blocked_search_and_equals_dense():
+    """The default ("auto") takes the blocked kernel from AUTO_BLOCKED_MIN_SIZE slots on and gives dense's results."""
+    parts = jnp.zeros((4, 2))
+    for size, blocked in ((AUTO_BLOCKED_MIN_SIZE - 1, False), (AUTO_BLOCKED_MIN_SIZE, True)):
+        meas = hp.empty_measurements(size)
+        jaxpr = str(jax.make_jaxpr(lambda p, m: hp.particle_weights(p, m, jnp.int32(3), k_max=10))(parts, meas))
+        assert ("top_k" not in jaxpr) == blocked, size  # dense is lax.top_k; the blocked kernel has none
+
+    rng = np.random.default_rng(11)
+    xy, weight, valid = raster_measurements(rng)
+    assert xy.shape[0] == 1024
+    particles = jnp.asarray(rng.uniform(-0.3, 3.4, (300, 2)).astype(np.float32))
+    default, dense = _all_three(None), _all_three("dense")
+    perm = rng.permutation(xy.shape[0])
+    for order in (np.arange(xy.shape[0]), perm):  # raster order, then random order
+        meas = hp.Measurements(jnp.asarray(xy[order]), jnp.asarray(weight[order]), jnp.asarray(valid[order]))
+        # Float32 squared distances to the valid measurements, sorted: ties at the k-th are the only freedom.
+        p = np.asarray(particles)
+        d2 = np.sort(((p[:, None, :] - xy[valid][None]) ** 2).sum(-1, dtype=np.float32), axis=1)
+        for k in (1, 10):
+            untied = d2[:, k] - d2[:, k - 1] > 1e-6 * d2[:, k]
+            assert untied.mean() > 0.95
+            (w, g, (sq, ws, sel)), (w_ref, g_ref, (sq_ref, ws_ref, sel_ref)) = (
+                default(particles, meas, jnp.int32(k)),
+                dense(particles, meas, jnp.int32(k)),
+            )
+            np.testing.assert_allclose(np.asarray(w)[untied], np.asarray(w_ref)[untied], rtol=1e-6)
+            np.testing.assert_allclose(np.asarray(g)[untied], np.asarray(g_ref)[untied], rtol=1e-6)
+            np.testing.assert_array_equal(np.asarray(sel)[untied], np.asarray(sel_ref)[untied])
+            np.testing.assert_allclose(np.asarray(sq)[untied], np.asarray(sq_ref)[untied], rtol=1e-6)
+            np.testing.assert_array_equal(np.asarray(ws)[untied], np.asarray(ws_ref)[untied])
+            # And both are eq. (1) by float64 brute force.
+            np.testing.assert_allclose(np.asarray(w), ref_weights(p, xy[order], weight[order], valid[order], k),
+                                       rtol=1e-5)

@@ -5,6 +5,7 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import numpy as np
@@ -16,6 +17,17 @@ from heatpf_jax.sweep import _sweep_jit, batch_size_of, sweep, sweep_memory
 from tests.conftest import SMALL_FILTER, SMALL_OPTIONS
 
 ROOT = Path(__file__).resolve().parents[1]
+SMALL_ARGS = [
+    "--set", f"num_particles={SMALL_OPTIONS.num_particles}",
+    "--set", f"max_measurements={SMALL_OPTIONS.max_measurements}",
+    "--set", f"k_max={SMALL_OPTIONS.k_max}",
+]
+
+
+@pytest.fixture(autouse=True)
+def _no_compilation_cache(monkeypatch):
+    """The tests never write into the user's compilation cache."""
+    monkeypatch.setenv("HEATPF_NO_CACHE", "1")
 
 
 def _batch():
@@ -172,32 +184,44 @@ def test_parse_grid_errors():
         assert str(info.value).startswith(field)
 
 
-def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_filter, capsys):
+def _counting(monkeypatch, fail_on_call: int | None = None, fake: bool = False) -> list[int]:
+    """Replaces the sweep the CLI calls by one that counts its calls (and computes, unless ``fake``)."""
+    import heatpf_jax.sweep
+
+    calls = []
+    real = heatpf_jax.sweep.sweep
+
+    def counted(key, seq, batch, model, **kwargs):
+        calls.append(batch_size_of(batch))
+        if len(calls) == fail_on_call:
+            raise KeyboardInterrupt
+        if fake:  # no compilation: errors equal to the ground truth's distance from the origin
+            return SimpleNamespace(mean=np.zeros((calls[-1], seq.num_steps, 2)))
+        return real(key, seq, batch, model, **kwargs)
+
+    monkeypatch.setattr(heatpf_jax.sweep, "sweep", counted)
+    return calls
+
+
+def _body(text: str) -> list[str]:
+    """The CSV without its record (the # lines)."""
+    return [line for line in text.splitlines() if not line.startswith("#")]
+
+
+def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_filter, capsys, monkeypatch):
     path = tmp_path / "seq.npz"
     hp.save_sequence(path, small_sequence)
     out = tmp_path / "sweep.csv"
-    args = [
-        "sweep",
-        str(path),
-        "-o",
-        str(out),
-        "--grid",
-        "k=1,2,3",
-        "--grid",
-        "diffusion_std=0.1,0.2",
-        "--batch-size",
-        "2",
-        "--set",
-        f"num_particles={SMALL_OPTIONS.num_particles}",
-        "--set",
-        f"max_measurements={SMALL_OPTIONS.max_measurements}",
-        "--set",
-        f"k_max={SMALL_OPTIONS.k_max}",
-    ]
+    args = ["sweep", str(path), "-o", str(out), "--grid", "k=1,2,3", "--grid", "diffusion_std=0.1,0.2",
+            "--batch-size", "2", *SMALL_ARGS]
     assert main(args) == 0
     full = out.read_text()
-    lines = full.splitlines()
+    lines = _body(full)
     assert lines[0] == "index,k,diffusion_std,mean_error,max_error,std_error" and len(lines) == 7
+    record = [line for line in full.splitlines() if line.startswith("# ")]
+    assert f"# heatpf_jax = {hp.__version__}" in record and "# option.num_particles = 128" in record
+    assert "# param.motion.odom_trans_noise = 0.1" in record  # fixed parameters are recorded, grid ones are not
+    assert not any(line.startswith(("# param.observation.k ", "# param.motion.diffusion_std ")) for line in record)
     # Each row's error is that of a single run with those parameters (same key).
     row = lines[4].split(",")
     params = small_filter.make_params(k=int(row[1]), diffusion_std=float(row[2]))
@@ -208,17 +232,111 @@ def test_cli_sweep_writes_ranks_and_resumes(tmp_path, small_sequence, small_filt
     best = min(lines[1:], key=lambda r: float(r.split(",")[3]))
     assert printed.split("best of 6")[1].splitlines()[2].split() == best.split(",")[1:]
 
-    # Interrupted: the last two rows lost and one cut in half. Resuming recomputes only those.
-    cut = "\n".join(lines[:5]) + "\n" + lines[5][:7]
-    out.write_text(cut)
+    # The same command on the finished file computes nothing and leaves it byte for byte.
+    calls = _counting(monkeypatch)
     assert main(args) == 0
+    assert calls == [] and out.read_text() == full
+
+    # Interrupted: the last two rows lost and one cut in half. Resuming recomputes only those (one call of 2).
+    head = full[: full.index(lines[5])]
+    out.write_text(head + lines[5][:7])
+    assert main(args) == 0
+    assert calls == [2]
     assert "(4 already in" in capsys.readouterr().out
-    resumed = out.read_text().splitlines()
+    resumed = _body(out.read_text())
     assert resumed[:5] == lines[:5]  # finished rows untouched, the cut row dropped
     assert sorted(resumed[1:], key=lambda r: int(r.split(",")[0])) == lines[1:]
 
     # A different sweep into the same file is refused, and the file is kept.
-    before = out.read_text()
+    before = out.read_bytes()
     assert main(["sweep", str(path), "-o", str(out), "--grid", "aging=0.1,0.2"]) == 2
     assert "--output" in capsys.readouterr().err
-    assert out.read_text() == before
+    assert out.read_bytes() == before and calls == [2]
+
+
+def _refused(argv, out: Path, capsys, *differs: str) -> None:
+    before = out.read_bytes()
+    assert main(argv) == 2, argv
+    captured = capsys.readouterr()
+    err = captured.err.splitlines()
+    assert len(err) == 1 and "Traceback" not in captured.err + captured.out, captured.err
+    assert err[0].startswith(f"heatpf: error: --output: {out} holds the results of another sweep (")
+    assert err[0].endswith("use another --output to start a new file")
+    for name in differs:
+        assert f"({name}: " in err[0] or f"; {name}: " in err[0], err[0]
+    assert out.read_bytes() == before
+
+
+def test_cli_sweep_never_resumes_another_question_on_a_file(tmp_path, small_sequence, capsys, monkeypatch):
+    path = tmp_path / "seq.npz"
+    hp.save_sequence(path, small_sequence)
+    other = tmp_path / "other.npz"  # same shapes, another recording
+    hp.save_sequence(other, small_sequence._replace(ground_truth=small_sequence.ground_truth + 0.5))
+    out = tmp_path / "sweep.csv"
+    base = ["sweep", str(path), "-o", str(out), "--grid", "k=1,2", "--batch-size", "2", *SMALL_ARGS]
+    calls = _counting(monkeypatch, fake=True)
+    assert main(base) == 0 and calls == [2]
+    capsys.readouterr()
+    _refused([*base, "--set", "diffusion_std=0.3"], out, capsys, "param.motion.diffusion_std")
+    _refused([*base, "--set", "resampler=residual"], out, capsys, "option.resampler")
+    i = base.index(f"max_measurements={SMALL_OPTIONS.max_measurements}")
+    conventional = base[: i - 1] + base[i + 1 :]  # without --set max_measurements: an option it does not use
+    _refused([*conventional, "--method", "conventional"], out, capsys, "method")
+    _refused([*base, "--seed", "1"], out, capsys, "seed")
+    _refused([*base, "--burn-in", "5"], out, capsys, "burn_in")
+    _refused(["sweep", str(other), *base[2:]], out, capsys, "input_sha256")
+    _refused(["sweep", "--scenario", "standard", "--steps", "12", *base[2:]], out, capsys, "input_sha256", "scenario")
+    assert calls == [2]  # nothing was computed for a refused command
+    # The same question resumes, even under another path to the same content.
+    moved = tmp_path / "moved.npz"
+    moved.write_bytes(path.read_bytes())
+    full = out.read_bytes()
+    assert main(["sweep", str(moved), *base[2:]]) == 0
+    assert calls == [2] and out.read_bytes() == full
+    # --set with a parameter's default value asks the same question.
+    assert main([*base, "--set", f"diffusion_std={hp.build('heatmap')[1].motion.diffusion_std}"]) == 0
+    assert calls == [2] and out.read_bytes() == full
+    # A file that holds no record is never taken over.
+    notes = tmp_path / "notes.csv"
+    notes.write_text("index,k,mean_error,max_error,std_error\n0,1,0.1,0.2,0.3\n")
+    assert main([*base[:3], str(notes), *base[4:]]) == 2
+    assert "holds no record of the sweep" in capsys.readouterr().err
+    assert notes.read_text() == "index,k,mean_error,max_error,std_error\n0,1,0.1,0.2,0.3\n"
+
+
+def test_cli_sweep_never_resumes_another_question_on_a_scenario(tmp_path, capsys, monkeypatch):
+    import heatpf_jax.sim
+
+    out = tmp_path / "sweep.csv"
+    base = ["sweep", "--scenario", "standard", "--steps", "12", "--seeds", "2", "-o", str(out), "--grid", "k=1,2",
+            "--batch-size", "2", *SMALL_ARGS]
+    calls = _counting(monkeypatch, fake=True)
+    assert main(base) == 0 and calls == [2, 2]  # one call per seed
+    capsys.readouterr()
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated before the check")
+
+    monkeypatch.setattr(heatpf_jax.sim, "simulate", no_simulation)
+    _refused([*base, "--scenario", "split"], out, capsys, "scenario")
+    _refused([*base, "--seeds", "1:3"], out, capsys, "seeds")
+    _refused([*base, "--steps", "13"], out, capsys, "steps")
+    assert calls == [2, 2]
+
+
+def test_cli_sweep_ctrl_c_keeps_finished_rows_and_resumes(tmp_path, small_sequence, capsys, monkeypatch):
+    path = tmp_path / "seq.npz"
+    hp.save_sequence(path, small_sequence)
+    out = tmp_path / "sweep.csv"
+    args = ["sweep", str(path), "-o", str(out), "--grid", "k=1,2,3", "--grid", "aging=0.1,0.2", "--batch-size", "2",
+            *SMALL_ARGS]
+    calls = _counting(monkeypatch, fail_on_call=2, fake=True)
+    assert main(args) == 130
+    captured = capsys.readouterr()
+    assert captured.err.splitlines()[-1] == f"interrupted: 2 rows saved in {out}; run the same command to resume"
+    assert "Traceback" not in captured.err + captured.out
+    assert [r.split(",")[0] for r in _body(out.read_text())[1:]] == ["0", "1"]
+    calls = _counting(monkeypatch, fake=True)
+    assert main(args) == 0
+    assert calls == [2, 2]  # only the four missing rows
+    assert sorted(int(r.split(",")[0]) for r in _body(out.read_text())[1:]) == list(range(6))
