@@ -22,10 +22,10 @@ MIN_DISTANCE = 0.01
 _blocked = jax.jit(partial(k_nearest_blocked, k_max=K_MAX))
 # A deeper hierarchy with an odd block size, selecting in lax.map chunks of 48 particles (160 = 3 * 48 + 16).
 _blocked_deep = jax.jit(partial(k_nearest_blocked, k_max=K_MAX, block_size=3, fanouts=(2, 2), chunk_size=48))
-_plain = jax.jit(partial(hp.k_nearest, k_max=K_MAX))
+_plain = jax.jit(partial(hp.k_nearest, k_max=K_MAX, method="dense"))
 _blocked_vmap_k = jax.jit(jax.vmap(partial(k_nearest_blocked, k_max=K_MAX, chunk_size=64), in_axes=(None, None, 0)))
 _blocked_concrete = jax.jit(k_nearest_blocked, static_argnums=2)
-_plain_concrete = jax.jit(hp.k_nearest, static_argnums=2)
+_plain_concrete = jax.jit(partial(hp.k_nearest, method="dense"), static_argnums=2)
 
 
 def weights_from(sq, w, selected, valid):
@@ -40,7 +40,7 @@ def blocked_weights(particles, meas, k, chunk_size=64):
 
 
 _grad_blocked = jax.jit(jax.grad(lambda p, m, k: jnp.sum(blocked_weights(p, m, k))))
-_grad_plain = jax.jit(jax.grad(lambda p, m, k: jnp.sum(hp.particle_weights(p, m, k, k_max=K_MAX))))
+_grad_plain = jax.jit(jax.grad(lambda p, m, k: jnp.sum(hp.particle_weights(p, m, k, k_max=K_MAX, method="dense"))))
 
 
 # --------------------------------------------------------------------------- references and inputs
@@ -117,6 +117,26 @@ def particles_around(rng, meas, n=N_PART, spread=0.3, far=0):
     return jnp.asarray(p, jnp.float32)
 
 
+def shuffled_buffer(rng, m, valid_fraction, extent=3.0):
+    """Uniform positions in random order, invalid slots (with garbage positions and weights) anywhere."""
+    xy = rng.uniform(-extent, extent, (m, 2)).astype(np.float32)
+    weight = rng.uniform(0.05, 1.0, m).astype(np.float32)
+    valid = rng.uniform(size=m) < valid_fraction
+    weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
+    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid))
+
+
+def uniform_particles(rng, meas, n=N_PART, far=0):
+    """Particles uniform over the valid measurements' bounding box (the whole buffer's if none), ``far`` distant."""
+    xy = np.asarray(meas.xy)
+    valid = np.asarray(meas.valid)
+    box = xy[valid] if valid.any() else xy
+    p = rng.uniform(box.min(axis=0), box.max(axis=0), (n, 2))
+    if far:
+        p[:far] = rng.choice([-1.0, 1.0], (far, 2)) * rng.uniform(50.0, 1e3, (far, 2))
+    return jnp.asarray(p, jnp.float32)
+
+
 def check_against_references(particles, meas, k, got, *, tol=1e-5):
     """``got`` (blocked) equals the plain formulation and the float64 brute force."""
     kk = got[0].shape[1]
@@ -131,7 +151,7 @@ def check_against_references(particles, meas, k, got, *, tol=1e-5):
     np.testing.assert_allclose(sq, rsq, rtol=tol, atol=1e-12)
     np.testing.assert_allclose(w, rw, rtol=1e-7)
     ours = np.asarray(weights_from(*got, meas.valid))
-    plain = np.asarray(hp.particle_weights(particles, meas, jnp.int32(k), k_max=K_MAX))
+    plain = np.asarray(hp.particle_weights(particles, meas, jnp.int32(k), k_max=K_MAX, method="dense"))
     np.testing.assert_allclose(ours, plain, rtol=tol)
     np.testing.assert_allclose(ours, ref_weights(rsq, rw, rsel, valid), rtol=tol)
 
@@ -178,6 +198,32 @@ def test_random_layout_every_k_scattered_padding_and_far_particles():
         for k in range(1, K_MAX + 1):
             check_against_references(parts, meas, k, _blocked(parts, meas, jnp.int32(k)))
             check_against_references(parts, meas, k, _blocked_deep(parts, meas, jnp.int32(k)))
+
+
+# Random-order buffers (a user's own source, measurements fused from other robots) with particles spread
+# over the same area: sizes below, at and above the block size, multiples of it or not (7 < K_MAX).
+@pytest.mark.parametrize(("m", "valid_fraction"), [(7, 0.8), (64, 1.0), (301, 0.6), (1027, 0.9)])
+def test_random_order_layout_matches_brute_force(m, valid_fraction):
+    rng = np.random.default_rng(m)
+    meas = shuffled_buffer(rng, m, valid_fraction)
+    parts = uniform_particles(rng, meas, far=3)
+    for k in (1, 3, K_MAX):
+        check_against_references(parts, meas, k, _blocked(parts, meas, jnp.int32(k)))
+    check_against_references(parts, meas, K_MAX, _blocked_deep(parts, meas, jnp.int32(K_MAX)))
+
+
+def test_buffer_order_changes_nothing():
+    """Any permutation of the buffer (raster, reversed, random) gives the same outputs: same kernel, same work."""
+    rng = np.random.default_rng(15)
+    raster = raster_buffer(rng, 0.2)
+    parts = uniform_particles(rng, raster, far=2)
+    want = [np.asarray(a) for a in _blocked(parts, raster, jnp.int32(K_MAX))]
+    for order in (np.arange(M_RASTER)[::-1], rng.permutation(M_RASTER)):
+        permuted = jax.tree.map(lambda a, order=order: a[order], raster)
+        got = [np.asarray(a) for a in _blocked(parts, permuted, jnp.int32(K_MAX))]
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    check_against_references(parts, permuted, K_MAX, _blocked(parts, permuted, jnp.int32(K_MAX)))
 
 
 @pytest.mark.parametrize("threshold", [0.05, 0.35])  # more pixels than slots / fewer (invalid run at the end)
@@ -240,15 +286,22 @@ def test_concrete_k_unrolled_path_on_hierarchies():
             np.testing.assert_allclose(got[0], rsq, rtol=1e-5, atol=1e-12)
 
 
-def test_distance_ties_give_a_valid_neighbour_set():
-    """A lattice with particles on lattice points and cell centres: many exact ties; equal weights."""
+@pytest.mark.parametrize("shuffle", [False, True])
+def test_distance_ties_give_a_valid_neighbour_set(shuffle):
+    """A lattice with particles on lattice points and cell centres: many exact ties; equal weights.
+
+    In row order, or shuffled (the invalid slot then lands anywhere in the buffer).
+    """
     gx, gy = np.meshgrid(np.arange(20.0), np.arange(15.0))
     xy = np.stack([gx.ravel(), gy.ravel()], -1).astype(np.float32)
     xy = np.concatenate([xy, np.zeros((1, 2), np.float32)])  # 301 slots, the last one invalid
     valid = np.ones(M_RANDOM, bool)
     valid[-1] = False
-    meas = hp.Measurements(jnp.asarray(xy), jnp.ones(M_RANDOM, jnp.float32), jnp.asarray(valid))
     rng = np.random.default_rng(5)
+    if shuffle:
+        order = rng.permutation(M_RANDOM)
+        xy, valid = xy[order], valid[order]
+    meas = hp.Measurements(jnp.asarray(xy), jnp.ones(M_RANDOM, jnp.float32), jnp.asarray(valid))
     parts = np.concatenate([rng.integers(0, 15, (80, 2)), rng.integers(0, 14, (80, 2)) + 0.5]).astype(np.float32)
     parts = jnp.asarray(parts)
     for k in range(1, K_MAX + 1):
@@ -264,10 +317,11 @@ def test_distance_ties_give_a_valid_neighbour_set():
 # --------------------------------------------------------------------------- transformations
 
 
-def test_vmap_over_k():
+@pytest.mark.parametrize("particles", ["cloud", "uniform"])
+def test_vmap_over_k(particles):
     rng = np.random.default_rng(6)
-    meas = random_buffer(rng)
-    parts = particles_around(rng, meas, spread=1.0)
+    meas = random_buffer(rng)  # random order, invalid slots scattered and a run at the end
+    parts = particles_around(rng, meas, spread=1.0) if particles == "cloud" else uniform_particles(rng, meas, far=2)
     ks = jnp.arange(1, K_MAX + 1, dtype=jnp.int32)
     batched = _blocked_vmap_k(parts, meas, ks)
     for i, k in enumerate(range(1, K_MAX + 1)):
@@ -292,17 +346,23 @@ def test_vmap_over_buffers_and_scan():
 
         return jax.lax.scan(body, p, jnp.asarray([[0.1, 0.0], [0.0, -0.2], [0.3, 0.3]], jnp.float32))[1]
 
-    plain = partial(hp.particle_weights, k_max=K_MAX)
+    plain = partial(hp.particle_weights, k_max=K_MAX, method="dense")
     ours = jax.jit(partial(rollout, blocked_weights))(p1, m1)
     want = jax.jit(partial(rollout, plain))(p1, m1)
     np.testing.assert_allclose(np.asarray(ours), np.asarray(want), rtol=1e-5)
 
 
-def test_grad_matches_plain_formulation():
+@pytest.mark.parametrize("layout", ["raster", "random"])
+def test_grad_matches_plain_formulation(layout):
     rng = np.random.default_rng(8)
-    meas = raster_buffer(rng, 0.2)
-    parts = np.array(particles_around(rng, meas, far=3))
-    parts[-1] = np.asarray(meas.xy)[0]  # on top of a measurement: inside the distance floor
+    if layout == "raster":
+        meas = raster_buffer(rng, 0.2)
+        parts = np.array(particles_around(rng, meas, far=3))
+    else:
+        meas = shuffled_buffer(rng, M_RANDOM, 0.7)
+        parts = np.array(uniform_particles(rng, meas, far=3))
+    first_valid = int(np.flatnonzero(np.asarray(meas.valid))[0])
+    parts[-1] = np.asarray(meas.xy)[first_valid]  # on top of a measurement: inside the distance floor
     parts = jnp.asarray(parts)
     for k in (1, 3, K_MAX):
         g = np.asarray(_grad_blocked(parts, meas, jnp.int32(k)))
@@ -311,9 +371,8 @@ def test_grad_matches_plain_formulation():
         np.testing.assert_allclose(g, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
     # Gradients reach the measurement weights through the selected slots only.
     gw = jax.grad(lambda w: jnp.sum(blocked_weights(parts, meas._replace(weight=w), jnp.int32(3))))(meas.weight)
-    gw_plain = jax.grad(
-        lambda w: jnp.sum(hp.particle_weights(parts, meas._replace(weight=w), jnp.int32(3), k_max=K_MAX))
-    )(meas.weight)
+    dense = partial(hp.particle_weights, k_max=K_MAX, method="dense")
+    gw_plain = jax.grad(lambda w: jnp.sum(dense(parts, meas._replace(weight=w), jnp.int32(3))))(meas.weight)
     np.testing.assert_allclose(np.asarray(gw), np.asarray(gw_plain), rtol=1e-5, atol=1e-7)
 
 
