@@ -218,9 +218,19 @@ def validate(params, properties) -> None:
         prop.check(name, value)
 
 
+def _as_array(prop: Param, value):
+    if isinstance(value, jax.Array):  # traced or on a device: stay in JAX
+        return value if value.dtype == prop.dtype else value.astype(prop.dtype)
+    return np.asarray(value, np.int32 if prop.integer else np.float32)  # host values: no device work yet
+
+
 def as_arrays(params, properties):
-    """Every leaf as a JAX array of its parameter's dtype (``int32`` or ``float32``)."""
-    return jax.tree.map(lambda p, v: jnp.asarray(v, p.dtype), properties, params, is_leaf=_is_param)
+    """Every leaf as an array of its parameter's dtype (``int32`` or ``float32``).
+
+    Host values (Python or NumPy numbers) become NumPy arrays, JAX arrays keep their device; either is
+    a valid argument of a jitted step or run.
+    """
+    return jax.tree.map(_as_array, properties, params, is_leaf=_is_param)
 
 
 def to_unconstrained(params, properties):

@@ -213,7 +213,7 @@ class Tracker:
             raise ValueError(f"num_steps: must be a positive integer or None, got {num_steps!r}")
 
         self._model = model
-        self._params = P.as_arrays(params, model.properties())
+        self._params = jax.device_put(P.as_arrays(params, model.properties()))  # on the device once
         self._heatmap_shape = shape
         self._num_steps = None if num_steps is None else int(num_steps)
         self._constants = _Constants(

@@ -24,6 +24,7 @@ import math
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
@@ -47,7 +48,7 @@ __all__ = [
     "kalman_update",
 ]
 
-_H = jnp.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]], jnp.float32)
+_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]], np.float32)  # NumPy: no device work at import
 
 
 class KalmanState(NamedTuple):
