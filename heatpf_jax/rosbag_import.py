@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from heatpf_jax.files import check_output
 from heatpf_jax.sequence import Sequence, SequenceError, save_sequence, validate_sequence
 
 __all__ = ["CLIP_TOLERANCE", "add_parser", "import_rosbag"]
@@ -517,11 +518,7 @@ def import_rosbag(
 
 
 def _cmd_import_rosbag(args: argparse.Namespace) -> int:
-    out = Path(args.output)
-    if out.exists() and not args.force:
-        raise ValueError(f"--output: {out} exists; pass --force to replace it")
-    if not out.parent.is_dir():
-        raise ValueError(f"--output: the folder {out.parent} does not exist")
+    out = check_output("--output", args.output, inputs=(args.bag,), replace=args.force)
     seq = import_rosbag(
         args.bag,
         heatmap_topic=args.heatmap_topic,
