@@ -21,7 +21,7 @@ from heatpf_jax import params as P
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sequence import Sequence
 
-__all__ = ["RunResult", "run", "stack_params", "validate_params"]
+__all__ = ["RunResult", "prepare_run", "run", "run_core", "stack_params", "validate_params"]
 
 
 class RunResult(NamedTuple):
@@ -60,7 +60,8 @@ class _ScanInputs(NamedTuple):
     odometry: Float[Array, "3"]
 
 
-def _run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
+def run_core(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
+    """The traced body of :func:`run`, without checks: inputs prepared by :func:`prepare_run`."""
     k_init, k_steps = jax.random.split(key)
     num_steps = sequence.heatmaps.shape[0]
     intrinsics = jnp.asarray(sequence.intrinsics, jnp.float32)
@@ -90,7 +91,27 @@ def _run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
     return RunResult(info=info, final_state=final_state)
 
 
-_run_jit = jax.jit(_run, static_argnames="model")
+_run_jit = jax.jit(run_core, static_argnames="model")
+
+
+def prepare_run(sequence: Sequence, params, model) -> tuple[Sequence, Any]:
+    """:func:`run`'s checks and host-side preparation: ``(sequence, params)`` ready for :func:`run_core`.
+
+    Raises:
+        ValueError: naming a static choice or a parameter that is unusable.
+    """
+    model.validate()
+    validate_params(params, model)
+    params = P.as_arrays(params, model.properties())
+    # Host-side preparation in NumPy where the inputs are concrete: every eager JAX op would be one more
+    # small program to trace and compile before the run (they dominate a warm start from the cache).
+    if isinstance(sequence.odometry, jax.core.Tracer):
+        odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
+    else:
+        odometry = np.array(sequence.odometry, np.float32)
+        odometry[0] = 0.0
+    # Ground truth is not an input: dropping it keeps one compilation with or without it.
+    return sequence._replace(odometry=odometry, ground_truth=None), params
 
 
 def run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
@@ -110,16 +131,5 @@ def run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
     Returns:
         :class:`RunResult` with per-step info (leading axis T).
     """
-    model.validate()
-    validate_params(params, model)
-    params = P.as_arrays(params, model.properties())
-    # Host-side preparation in NumPy where the inputs are concrete: every eager JAX op would be one more
-    # small program to trace and compile before the run (they dominate a warm start from the cache).
-    if isinstance(sequence.odometry, jax.core.Tracer):
-        odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
-    else:
-        odometry = np.array(sequence.odometry, np.float32)
-        odometry[0] = 0.0
-    # Ground truth is not an input: dropping it keeps one compilation with or without it.
-    sequence = sequence._replace(odometry=odometry, ground_truth=None)
+    sequence, params = prepare_run(sequence, params, model)
     return _run_jit(key, sequence, params, model)

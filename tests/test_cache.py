@@ -116,3 +116,37 @@ def test_no_cache_environment_turns_it_off(tmp_path, monkeypatch):
     before = _jax_settings()
     assert enable_compilation_cache() is None
     assert _jax_settings() == before and not (tmp_path / "jit").exists()
+
+
+def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeypatch):
+    """The second process-equivalent call loads the exported program (no export) and gives run's estimates."""
+    import jax
+    import numpy as np
+    from jax import export
+
+    import heatpf_jax as hp
+    from heatpf_jax.cache import run_estimates
+    from tests.conftest import SMALL_FILTER
+
+    params = SMALL_FILTER.make_params(k=2)
+    key = jax.random.key(4)
+    ref = hp.run(key, small_sequence, params, SMALL_FILTER).info
+    mean, cov = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    files = list((tmp_path / "exports").iterdir())
+    assert len(files) == 1
+    np.testing.assert_array_equal(mean, np.asarray(ref.mean))
+    np.testing.assert_array_equal(cov, np.asarray(ref.cov))
+    # Loaded, not exported again: exporting now would fail.
+    monkeypatch.setattr(export, "export", lambda *a, **k: (_ for _ in ()).throw(AssertionError("exported again")))
+    again, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    np.testing.assert_array_equal(again, mean)
+    # Another question (another model) never loads this program.
+    monkeypatch.undo()
+    other = SMALL_FILTER._replace(num_particles=64)
+    run_estimates(key, small_sequence, other.default_params(), other, tmp_path)
+    assert len(list((tmp_path / "exports").iterdir())) == 2
+    # A damaged file is replaced, with the same estimates.
+    files[0].write_bytes(b"garbage")
+    fixed, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    np.testing.assert_array_equal(fixed, mean)
+    assert files[0].read_bytes() != b"garbage"
