@@ -50,6 +50,7 @@ from heatpf_jax.motion import (
     move_and_diffuse,
     move_particles,
 )
+from heatpf_jax.motion_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
 from heatpf_jax.observation import (
     Floored,
     GaussianKernel,
@@ -84,6 +85,8 @@ __all__ = [
     "AgingBuffer",
     "AgingParams",
     "ClusterCentreSource",
+    "ConstantVelocity",
+    "ConstantVelocityParams",
     "DiffusionOnly",
     "ESSParams",
     "ESSResampling",
@@ -122,6 +125,7 @@ __all__ = [
     "Tracker",
     "UniformBox",
     "UniformExplorers",
+    "VelocityParticles",
     "age_measurements",
     "apply_odometry",
     "bitbots2018",
