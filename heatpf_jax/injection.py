@@ -28,11 +28,14 @@ __all__ = [
     "GaussianExplorerParams",
     "GaussianExplorers",
     "InjectionContext",
+    "RandomParams",
+    "RandomParticles",
     "UniformBox",
     "UniformExplorers",
     "explorer_count",
     "explorer_mask",
     "explorer_slots",
+    "refill",
     "replace_slots",
     "spawn_gaussian",
     "spawn_uniform",
@@ -144,6 +147,25 @@ def replace_slots(key: PRNGKeyArray, context: InjectionContext, mask: Bool[Array
     return context._replace(particles=particles, log_weights=log_w)
 
 
+def refill(key: PRNGKeyArray, context: InjectionContext, fraction, draw) -> InjectionContext:
+    """Refills the next ``round(fraction * N)`` free slots of lowest support with positions from ``draw``.
+
+    Args:
+        key: PRNG key (``draw`` gets it; the motion model's ``spawn`` a key folded from it).
+        context: the injection context.
+        fraction: share of the particles to refill (may be traced).
+        draw: ``(key, n) -> [n, 2]`` positions (all ``n`` drawn; the refilled slots take theirs).
+
+    Returns:
+        The context with those slots replaced (weight 1/N each) and ``used`` advanced.
+    """
+    n = context.log_weights.shape[0]
+    count = explorer_count(fraction, n)
+    mask = take_slots(context.rank, context.used, count)
+    context = replace_slots(jax.random.fold_in(key, 1), context, mask, draw(key, n))
+    return context._replace(used=context.used + count)
+
+
 class ExplorerParams(NamedTuple):
     """Numbers of :class:`UniformExplorers`.
 
@@ -172,12 +194,7 @@ class UniformExplorers:
         _check_box(self.box)
 
     def inject(self, key: PRNGKeyArray, context: InjectionContext, params: ExplorerParams) -> InjectionContext:
-        n = context.log_weights.shape[0]
-        count = explorer_count(params.explorer_fraction, n)
-        mask = take_slots(context.rank, context.used, count)
-        xy = spawn_uniform(key, n, self.box)
-        context = replace_slots(jax.random.fold_in(key, 1), context, mask, xy)
-        return context._replace(used=context.used + count)
+        return refill(key, context, params.explorer_fraction, lambda k, n: spawn_uniform(k, n, self.box))
 
 
 class GaussianExplorerParams(NamedTuple):
@@ -207,9 +224,43 @@ class GaussianExplorers:
         )
 
     def inject(self, key: PRNGKeyArray, context: InjectionContext, params: GaussianExplorerParams) -> InjectionContext:
-        n = context.log_weights.shape[0]
-        count = explorer_count(params.explorer_fraction, n)
-        mask = take_slots(context.rank, context.used, count)
-        xy = spawn_gaussian(key, n, context.estimate.mean, params.explorer_std)
-        context = replace_slots(jax.random.fold_in(key, 1), context, mask, xy)
-        return context._replace(used=context.used + count)
+        return refill(
+            key, context, params.explorer_fraction,
+            lambda k, n: spawn_gaussian(k, n, context.estimate.mean, params.explorer_std),
+        )
+
+
+class RandomParams(NamedTuple):
+    """Numbers of :class:`RandomParticles`.
+
+    Attributes:
+        random_fraction: share of the particles redrawn uniformly each step (Olufs et al. 3.2: 50 of 300).
+    """
+
+    random_fraction: float = 50 / 300
+
+
+@dataclass(frozen=True)
+class RandomParticles:
+    """Random particles (Olufs et al., section 3.2): a fixed share drawn uniformly over ``box`` every step.
+
+    Unlike the explorers (III-E), which the paper ties to the weakest particles, these are Olufs's
+    "random particles" that keep the filter able to find an object anywhere in the spawn area. They
+    take the lowest-support slots left after the injectors before them (:func:`take_slots`); their
+    other state (a velocity) comes from the motion model's ``spawn``.
+    """
+
+    box: tuple[float, float, float, float] = (0.0, 7.0, -4.0, 4.0)
+    name: str = "random"
+
+    def default_params(self) -> RandomParams:
+        return RandomParams()
+
+    def properties(self) -> RandomParams:
+        return RandomParams(random_fraction=unit_interval(high_closed=False, trainable=False))
+
+    def validate(self) -> None:
+        _check_box(self.box)
+
+    def inject(self, key: PRNGKeyArray, context: InjectionContext, params: RandomParams) -> InjectionContext:
+        return refill(key, context, params.random_fraction, lambda k, n: spawn_uniform(k, n, self.box))

@@ -145,3 +145,27 @@ def test_explorer_pieces_refill_the_lowest_support_slots(rng):
         moved = np.any(np.asarray(out.particles.xy) != np.asarray(xy), axis=1)
         np.testing.assert_array_equal(moved, taken)
         assert np.all(np.abs(np.asarray(out.particles.xy)[taken] - centre) < 0.6)
+
+
+def test_random_particles_after_explorers_take_the_next_slots(rng):
+    """Olufs's random particles: uniform over their box, in the free slots after the explorers'."""
+    from heatpf_jax.injection import RandomParams
+    from heatpf_jax.motion import Particles
+
+    n = 60
+    xy = jnp.asarray(rng.normal(size=(n, 2)), jnp.float32)
+    rank = jnp.asarray(rng.permutation(n), jnp.int32)
+    ctx = hp.InjectionContext(
+        particles=Particles(xy), log_weights=jnp.full((n,), -np.log(n), jnp.float32), rank=rank,
+        used=jnp.int32(0), estimate=hp.Estimate(jnp.zeros(2), jnp.eye(2), jnp.zeros(2)),
+        motion=hp.RandomWalk(), motion_params=hp.RandomWalkParams(),
+    )
+    ctx = hp.UniformExplorers(box=(20.0, 21.0, 30.0, 31.0)).inject(jax.random.key(0), ctx, hp.ExplorerParams(0.1))
+    ctx = hp.RandomParticles(box=(-5.0, -4.0, 8.0, 9.0)).inject(jax.random.key(1), ctx, RandomParams(0.25))
+    assert int(ctx.used) == 6 + 15
+    r = np.asarray(rank)
+    out = np.asarray(ctx.particles.xy)
+    explorers, randoms = r >= n - 6, (r >= n - 21) & (r < n - 6)
+    assert np.all((out[explorers, 0] >= 20) & (out[explorers, 0] <= 21))
+    assert np.all((out[randoms, 0] >= -5) & (out[randoms, 0] <= -4) & (out[randoms, 1] >= 8) & (out[randoms, 1] <= 9))
+    np.testing.assert_array_equal(out[~(explorers | randoms)], np.asarray(xy)[~(explorers | randoms)])

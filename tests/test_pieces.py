@@ -17,7 +17,7 @@ PIECES = [
     (pieces.ObservationModel, [hp.InverseDistance(), hp.GaussianKernel(), hp.Floored(hp.InverseDistance())]),
     (pieces.Estimator, [hp.TopFraction()]),
     (pieces.ResamplingStrategy, [hp.ESSResampling(r) for r in hp.RESAMPLERS.values()]),
-    (pieces.Injector, [hp.UniformExplorers(), hp.GaussianExplorers()]),
+    (pieces.Injector, [hp.UniformExplorers(), hp.GaussianExplorers(), hp.RandomParticles()]),
 ]
 
 
