@@ -179,7 +179,7 @@ class Filter(NamedTuple):
     def make_params(self, updates: dict[str, Any] | None = None, /, **names: Any) -> FilterParams:
         """Default params with some replaced by name: ``make_params(k=3, diffusion_std=0.1)`` or
         ``make_params({"motion.diffusion_std": 0.1})`` (dotted names, or the last part alone when unambiguous)."""
-        return P.set_by_name(self.default_params(), self.properties(), {**(updates or {}), **names})
+        return P.make_params(self, updates, **names)
 
     def validate(self) -> None:
         """Raises ``ValueError`` naming the field if a static choice is unusable."""
@@ -239,7 +239,7 @@ class Filter(NamedTuple):
 
         unnormalised = state.log_weights + self.observation.log_likelihood(particles.xy, buffer, params.observation)
         log_likelihood = jax.nn.logsumexp(unnormalised)
-        log_w = normalise_log(unnormalised)
+        log_w = normalise_log(unnormalised, log_likelihood)
         weights = jnp.exp(log_w)
         order = order_by_weight(weights)  # one sort, shared by the estimator and the resampling
 

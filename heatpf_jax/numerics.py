@@ -23,9 +23,12 @@ def safe_sqrt(x: Float[Array, "..."]) -> Float[Array, "..."]:
     return jnp.where(x > 0.0, jnp.sqrt(jnp.where(x > 0.0, x, 1.0)), 0.0)
 
 
-def normalise_log(log_w: Float[Array, " n"]) -> Float[Array, " n"]:
-    """Log weights minus their log-sum-exp; uniform when every weight is zero (or the sum is not finite)."""
-    total = jax.nn.logsumexp(log_w)
+def normalise_log(log_w: Float[Array, " n"], total: Float[Array, ""] | None = None) -> Float[Array, " n"]:
+    """Log weights minus their log-sum-exp; uniform when every weight is zero (or the sum is not finite).
+
+    ``total`` is ``logsumexp(log_w)`` when the caller has it already.
+    """
+    total = jax.nn.logsumexp(log_w) if total is None else total
     n = log_w.shape[0]
     return jnp.where(jnp.isfinite(total), log_w - total, jnp.full_like(log_w, -math.log(n)))
 

@@ -32,6 +32,7 @@ __all__ = [
     "integer",
     "interval",
     "leaf_names",
+    "make_params",
     "nonnegative",
     "partition",
     "positive",
@@ -201,6 +202,11 @@ def set_by_name(params, properties, updates: Mapping[str, Any], *, skip_unknown:
             raise ValueError(f"{name}: unknown parameter (known: {', '.join(names)})")
         leaves[names.index(full)] = value
     return jax.tree.unflatten(treedef, leaves)
+
+
+def make_params(model, updates: Mapping[str, Any] | None = None, **names: Any):
+    """``model.default_params()`` with some leaves replaced by name (see :func:`set_by_name`)."""
+    return set_by_name(model.default_params(), model.properties(), {**(updates or {}), **names})
 
 
 def _pairs(params, properties) -> Iterable[tuple[str, Any, Param]]:

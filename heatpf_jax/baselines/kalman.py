@@ -31,7 +31,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 from heatpf_jax.filter import StepInfo
 from heatpf_jax.injection import UniformBox
 from heatpf_jax.measurements import empty_measurements
-from heatpf_jax.params import nonnegative, positive
+from heatpf_jax.params import make_params, nonnegative, positive
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sources import ClusterCentreSource, SourceParams
 
@@ -187,9 +187,7 @@ class KalmanFilter(NamedTuple):
 
     def make_params(self, updates: dict | None = None, /, **names) -> KalmanParams:
         """Default params with some replaced by (dotted or unambiguous short) name."""
-        from heatpf_jax.params import set_by_name
-
-        return set_by_name(self.default_params(), self.properties(), {**(updates or {}), **names})
+        return make_params(self, updates, **names)
 
     def validate(self) -> None:
         self.initial.validate()
