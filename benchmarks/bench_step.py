@@ -80,7 +80,7 @@ def setting(model, params, name: str):
     return jax.tree.leaves(params)[names.index(full)]
 
 
-DEFAULT_MODEL = hp.heatmap_filter()
+DEFAULT_MODEL = hp.paper_filter()
 DEFAULT_PARAMS = DEFAULT_MODEL.default_params()
 DEFAULT_K, DEFAULT_K_MAX = setting(DEFAULT_MODEL, DEFAULT_PARAMS, "k"), hp.FilterOptions().k_max
 
@@ -202,7 +202,7 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
     choices = ((f"defaults k={DEFAULT_K}/{DEFAULT_K_MAX}", DEFAULT_K, DEFAULT_K_MAX), (f"k={k}", k, k))
     for label, step_k, k_max in choices:
         options = hp.FilterOptions(num_particles=num_particles, max_measurements=max_measurements, k_max=k_max)
-        model = hp.heatmap_filter(options)
+        model = hp.paper_filter(options)
         params_py = model.make_params(k=step_k, threshold=threshold)
         model.validate()
         hp.validate_params(params_py, model)

@@ -52,7 +52,7 @@ def _timed(fn) -> float:
 
 def measure(sets: int, steps: int, chunks: list[int], loop: bool) -> dict:
     seq = simulate("standard", 0, num_steps=steps)
-    model = hp.heatmap_filter(hp.FilterOptions(k_max=10))
+    model = hp.paper_filter(hp.FilterOptions(k_max=10))
     batch = _params(model, sets)
     key = jax.random.key(0)
     out = {"devices": len(jax.devices()), "rows": []}

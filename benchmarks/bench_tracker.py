@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
 
     n = args.warmup + args.repeats
     seq = simulate("standard", 0, num_steps=n)
-    model = hp.heatmap_filter()
+    model = hp.paper_filter()
     params_py = model.default_params()
     dev = jax.devices()[0]
     load_before = os.getloadavg()

@@ -155,7 +155,7 @@ def uniform_buffer(like: hp.Measurements, seed: int = 1) -> hp.Measurements:
     m = like.xy.shape[0]
     pts = rng.uniform(lo, hi, (m, 2)).astype(np.float32)
     weight = rng.uniform(0.3, 1.0, m).astype(np.float32)
-    return hp.Measurements(jnp.asarray(pts), jnp.asarray(weight), jnp.ones(m, bool))
+    return hp.Measurements(jnp.asarray(pts), jnp.asarray(weight), jnp.ones(m, bool), jnp.zeros((m, 2, 2), jnp.float32))
 
 
 def uniform_particles(n: int, like: hp.Measurements, seed: int = 3) -> jax.Array:

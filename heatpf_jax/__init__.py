@@ -6,7 +6,8 @@ using Particle Filters in Cartesian Space".
 
 from heatpf_jax.baselines import KalmanFilter, KalmanParams, KalmanState
 from heatpf_jax.buffers import AgingBuffer, AgingParams, LatestOnly
-from heatpf_jax.camera import camera_pose, pixel_ray, project_pixel, project_points
+from heatpf_jax.camera import camera_pose, ground_jacobian, pixel_ray, project_pixel, project_points
+from heatpf_jax.clustering import Clusters, mean_shift
 from heatpf_jax.estimate import (
     Estimate,
     TopFraction,
@@ -15,6 +16,7 @@ from heatpf_jax.estimate import (
     top_fraction_estimate,
     weighted_mean_cov,
 )
+from heatpf_jax.estimate_modes import DominantMode
 from heatpf_jax.filter import Filter, FilterParams, FilterState, StepInfo
 from heatpf_jax.injection import (
     ExplorerParams,
@@ -31,6 +33,7 @@ from heatpf_jax.injection import (
     spawn_uniform,
     take_slots,
 )
+from heatpf_jax.injection_sensor import MeasurementExplorers, MeasurementParams, sample_measurements
 from heatpf_jax.knn import k_nearest_blocked
 from heatpf_jax.measurements import (
     Measurements,
@@ -40,6 +43,13 @@ from heatpf_jax.measurements import (
     move_measurements,
     project_heatmap,
     update_buffer,
+)
+from heatpf_jax.modes import (
+    GaussianMixtureModes,
+    KMeansModes,
+    MeanShiftModes,
+    Modes,
+    NoModes,
 )
 from heatpf_jax.motion import (
     DiffusionOnly,
@@ -51,6 +61,7 @@ from heatpf_jax.motion import (
     move_and_diffuse,
     move_particles,
 )
+from heatpf_jax.motion_inertia import InertiaParticles, MassInertia, MassInertiaParams
 from heatpf_jax.motion_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
 from heatpf_jax.observation import (
     Floored,
@@ -61,8 +72,19 @@ from heatpf_jax.observation import (
     k_nearest,
     particle_weights,
 )
+from heatpf_jax.observation_range import FootprintTemplate, FootprintTemplateParams
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.presets import FilterOptions, Method, bitbots2018, build, conventional_filter, heatmap_filter
+from heatpf_jax.presets import (
+    FilterOptions,
+    Method,
+    bitbots2018,
+    build,
+    conventional_filter,
+    extended_filter,
+    heatmap_filter,
+    heatmap_params,
+    paper_filter,
+)
 from heatpf_jax.resampling import (
     RESAMPLERS,
     ESSParams,
@@ -74,6 +96,7 @@ from heatpf_jax.resampling import (
     stratified,
     systematic,
 )
+from heatpf_jax.resampling_clustered import ClusterParams, ClusterResampling
 from heatpf_jax.rollout import RunResult, run, stack_params, validate_params
 from heatpf_jax.sequence import Sequence, SequenceError, load_sequence, save_sequence, validate_sequence
 from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
@@ -82,13 +105,16 @@ from heatpf_jax.tracker import Tracker
 __version__ = "0.1.0"
 
 __all__ = [
-    "RESAMPLERS",
     "AgingBuffer",
     "AgingParams",
     "ClusterCentreSource",
+    "ClusterParams",
+    "ClusterResampling",
+    "Clusters",
     "ConstantVelocity",
     "ConstantVelocityParams",
     "DiffusionOnly",
+    "DominantMode",
     "ESSParams",
     "ESSResampling",
     "Estimate",
@@ -98,20 +124,33 @@ __all__ = [
     "FilterParams",
     "FilterState",
     "Floored",
+    "FootprintTemplate",
+    "FootprintTemplateParams",
     "GaussianExplorerParams",
     "GaussianExplorers",
     "GaussianKernel",
+    "GaussianMixtureModes",
+    "InertiaParticles",
     "InjectionContext",
     "InverseDistance",
     "InverseDistanceParams",
+    "KMeansModes",
     "KalmanFilter",
     "KalmanParams",
     "KalmanState",
     "LatestOnly",
+    "MassInertia",
+    "MassInertiaParams",
+    "MeanShiftModes",
+    "MeasurementExplorers",
+    "MeasurementParams",
     "Measurements",
     "Method",
+    "Modes",
+    "NoModes",
     "Particles",
     "PixelSource",
+    "RESAMPLERS",
     "RandomParticles",
     "RandomWalk",
     "RandomWalkParams",
@@ -141,15 +180,20 @@ __all__ = [
     "explorer_count",
     "explorer_mask",
     "explorer_slots",
+    "extended_filter",
     "gaussian_particle_weights",
+    "ground_jacobian",
     "heatmap_filter",
+    "heatmap_params",
     "k_nearest",
     "k_nearest_blocked",
     "load_sequence",
+    "mean_shift",
     "move_and_diffuse",
     "move_measurements",
     "move_particles",
     "multinomial",
+    "paper_filter",
     "particle_weights",
     "pixel_ray",
     "project_heatmap",
@@ -159,6 +203,7 @@ __all__ = [
     "run",
     "save_sequence",
     "sorted_top_fraction_estimate",
+    "sample_measurements",
     "spawn_gaussian",
     "spawn_uniform",
     "stack_params",

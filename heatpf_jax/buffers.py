@@ -65,4 +65,4 @@ class LatestOnly:
     def update(self, buffer: Measurements, new: Measurements, inputs: StepInputs, params: NoParams) -> Measurements:
         del buffer, params
         valid = new.valid & inputs.has_heatmap
-        return Measurements(xy=new.xy, weight=jnp.where(valid, new.weight, 0.0), valid=valid)
+        return new._replace(weight=jnp.where(valid, new.weight, 0.0), valid=valid)

@@ -186,7 +186,9 @@ def _program_key(model, treedef, args) -> str:
 
 
 def run_estimates(key, sequence, params, model, directory: str | os.PathLike | None):
-    """``run(key, sequence, params, model).info.mean`` and ``.cov`` as NumPy arrays, from an exported program.
+    """``run(key, sequence, params, model).info``'s ``mean``, ``cov`` and ``modes`` as NumPy arrays, from an
+    exported program: ``(mean [T, 2], cov [T, 2, 2], modes)`` with ``modes`` a :class:`~heatpf_jax.modes.Modes`
+    of NumPy arrays with a leading ``T`` axis.
 
     With a cache ``directory``, the traced and lowered run is kept as a serialized ``jax.export``
     program under ``directory/exports``, keyed by everything it depends on (JAX version, this
@@ -205,7 +207,7 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
 
     def plain():
         info = run(key, sequence, params, model).info
-        return np.asarray(info.mean), np.asarray(info.cov)
+        return _numpy((info.mean, info.cov, *info.modes))
 
     if directory is None:
         return plain()
@@ -216,7 +218,7 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
     def estimates(key_data, *flat):
         s, p = jax.tree.unflatten(treedef, flat)
         info = run_core(jax.random.wrap_key_data(key_data), s, p, model).info
-        return info.mean, info.cov
+        return (info.mean, info.cov, *info.modes)  # a plain tuple: exported programs keep standard pytrees
 
     path = Path(directory) / _EXPORTS / f"{_program_key(model, treedef, args)}.bin"
     exported = None
@@ -239,8 +241,14 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
     return _call(exported, args)
 
 
-def _call(exported, args):
+def _numpy(outputs):
     import numpy as np
 
-    mean, cov = exported.call(*args)
-    return np.asarray(mean), np.asarray(cov)
+    from heatpf_jax.modes import Modes
+
+    mean, cov, *modes = (np.asarray(x) for x in outputs)
+    return mean, cov, Modes(*modes)
+
+
+def _call(exported, args):
+    return _numpy(exported.call(*args))

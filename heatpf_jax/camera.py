@@ -22,6 +22,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 __all__ = [
     "OPTICAL_TO_BODY",
     "camera_pose",
+    "ground_jacobian",
     "pixel_ray",
     "project_pixel",
     "project_points",
@@ -112,6 +113,43 @@ def project_pixel(
     dist = jnp.where(sq > 0.0, jnp.sqrt(jnp.where(sq > 0.0, sq, 1.0)), 0.0)
     valid = valid & (dist <= max_distance) & jnp.all(jnp.isfinite(xy))
     return jnp.where(valid, xy, 0.0), valid
+
+
+def ground_jacobian(
+    uv: Float[ArrayLike, "2"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    plane_height: Float[ArrayLike, ""],
+) -> Float[Array, "2 2"]:
+    """Jacobian of :func:`project_pixel` at pixel ``uv``: ground metres per pixel, columns ``d xy / du``, ``d xy / dv``.
+
+    With the base-frame ray ``d = R ((u - cx) / fx, (v - cy) / fy, 1)``, the scale ``s = (h - o_z) / d_z``
+    and the hit ``xy = o_xy + s d_xy``, a change ``dd`` of the ray moves the hit by
+    ``s (dd_xy - d_xy dd_z / d_z)``, with ``dd = R[:, 0] / fx`` per column ``u`` and ``R[:, 1] / fy`` per row
+    ``v``. Its columns are the ground spacing of neighbouring pixels to first order: at a few metres
+    the row step (``v``, radial) is many times the column step (``u``, lateral). Rays that miss the
+    plane or meet it behind the camera give zeros. Written for a single pixel; ``jax.vmap`` it.
+
+    Args:
+        uv: pixel centre (column, row).
+        intrinsics: ``(fx, fy, cx, cy)``.
+        cam_to_base: ``[4, 4]`` camera pose in the base frame.
+        plane_height: height of the intersection plane, metres.
+
+    Returns:
+        ``[2, 2]`` Jacobian ``d (x, y) / d (u, v)``, metres per pixel.
+    """
+    cam_to_base = jnp.asarray(cam_to_base)
+    rot = cam_to_base[:3, :3]
+    direction = rot @ pixel_ray(uv, intrinsics)
+    dz = direction[2]
+    hits = jnp.abs(dz) > 1e-9
+    safe_dz = jnp.where(hits, dz, 1.0)
+    scale = (plane_height - cam_to_base[2, 3]) / safe_dz
+    steps = rot[:, :2] / jnp.stack([intrinsics[0], intrinsics[1]])[None, :]  # [3, 2]: d direction / d (u, v)
+    jac = scale * (steps[:2] - direction[:2, None] * steps[2][None, :] / safe_dz)
+    ok = hits & (scale > 0.0) & jnp.all(jnp.isfinite(jac))
+    return jnp.where(ok, jac, 0.0)
 
 
 def project_points(

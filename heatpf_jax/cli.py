@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from heatpf_jax.evaluate import DEFAULT_BURN_IN
-from heatpf_jax.files import check_input, check_output, check_output_dir, write_atomic
+from heatpf_jax.files import check_input, check_output, check_output_dir, same_file, write_atomic
 from heatpf_jax.settings import (
     LIST_PARAMS,
     check_burn_in,
@@ -27,6 +27,7 @@ from heatpf_jax.settings import (
     grid_config,
     method_names,
     method_with_settings,
+    option_alternatives,
     parse_grid,
     parse_seeds,
     parse_settings,
@@ -38,6 +39,7 @@ from heatpf_jax.sweep_record import RECORD_INTRO, grid_key, read_done, sweep_rec
 __all__ = [
     "CSV_HEADER",
     "DEFAULT_BURN_IN",
+    "MODES_HEADER",
     "describe_method",
     "error_stats",
     "grid_config",
@@ -46,9 +48,11 @@ __all__ = [
     "parse_seeds",
     "parse_settings",
     "write_estimates_csv",
+    "write_modes_csv",
 ]
 
 CSV_HEADER = "t,x,y,cov_xx,cov_xy,cov_yy"
+MODES_HEADER = "t,mode,weight,x,y,cov_xx,cov_xy,cov_yy"
 _INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C (128 + SIGINT)
 
 
@@ -86,6 +90,25 @@ def write_estimates_csv(path: str | os.PathLike, mean: np.ndarray, cov: np.ndarr
     write_atomic(path, write)
 
 
+def write_modes_csv(path: str | os.PathLike, modes) -> None:
+    """Writes ``t,mode,weight,x,y,cov_xx,cov_xy,cov_yy``, one row per valid mode per step, atomically.
+
+    Args:
+        path: the CSV file.
+        modes: a :class:`~heatpf_jax.modes.Modes` of NumPy arrays with a leading ``T`` axis.
+    """
+    weight, mean, cov, valid = (np.asarray(x) for x in modes)
+
+    def write(fh) -> None:
+        fh.write(MODES_HEADER + "\n")
+        for t, j in zip(*np.nonzero(valid), strict=True):  # row-major: by step, then by mode
+            c = cov[t, j]
+            values = (weight[t, j], mean[t, j, 0], mean[t, j, 1], c[0, 0], c[0, 1], c[1, 1])
+            fh.write(f"{t},{j}," + ",".join(f"{v:.6f}" for v in values) + "\n")
+
+    write_atomic(Path(path), write)
+
+
 # ---------------------------------------------------------------------------------------------- run
 
 
@@ -97,12 +120,14 @@ def _run_filter(seq, args, options, settings):
     model, params = method_with_settings(args.method, options, settings)
     start = time.perf_counter()
     # With the cache on, the traced run is kept as an exported program too: a warm start skips tracing.
-    mean, cov = run_estimates(jax.random.key(args.seed), seq, params, model, getattr(args, "cache_dir", None))
+    mean, cov, modes = run_estimates(
+        jax.random.key(args.seed), seq, params, model, getattr(args, "cache_dir", None)
+    )
     elapsed = time.perf_counter() - start
     if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
         bad = int(np.flatnonzero(~np.all(np.isfinite(mean), axis=1) | ~np.all(np.isfinite(cov), axis=(1, 2)))[0])
         raise RuntimeError(f"the filter produced a non-finite estimate at step {bad}; please report this")
-    return mean, cov, elapsed
+    return mean, cov, modes, elapsed
 
 
 def _report(name: str, seq, mean, elapsed: float, burn_in: int) -> None:
@@ -123,15 +148,26 @@ def _cmd_run(args) -> int:
     from heatpf_jax.sequence import load_sequence
 
     options, settings = checked_settings(args, [args.method])
+    if args.modes is not None and options.modes == "none":
+        options = options._replace(modes="meanshift")  # --modes without a choice: mean-shift modes
     check_burn_in(args.burn_in)
     out = check_output("--output", args.output, inputs=[args.input], replace=args.force)
+    modes_out = None
+    if args.modes is not None:
+        modes_out = check_output("--modes", args.modes, inputs=[args.input], replace=args.force)
+        if same_file(modes_out, out) or modes_out.resolve() == out.resolve():
+            raise ValueError(f"--modes: {args.modes} is also --output; choose another file")
     seq = load_sequence(args.input)
     if seq.ground_truth is not None:
         check_burn_in(args.burn_in, seq.num_steps)
-    mean, cov, elapsed = _run_filter(seq, args, options, settings)
+    mean, cov, modes, elapsed = _run_filter(seq, args, options, settings)
     write_estimates_csv(out, mean, cov)
+    if modes_out is not None:
+        write_modes_csv(modes_out, modes)
     _report(str(args.input), seq, mean, elapsed, args.burn_in)
     print(f"wrote {out}")
+    if modes_out is not None:
+        print(f"wrote {modes_out} ({int(np.sum(modes.valid))} modes over {seq.num_steps} steps)")
     return 0
 
 
@@ -193,9 +229,10 @@ def _eval_jobs(args) -> tuple[list[tuple[str, str | None]], range, int | None]:
 def _cmd_eval(args) -> int:
     from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table, plot_scenario
     from heatpf_jax.sequence import load_sequence
-    from heatpf_jax.sim import simulate
+    from heatpf_jax.sim import simulate_with_info
 
-    options, settings = checked_settings(args, sorted({v.method for v in DEFAULT_VARIANTS}))
+    variants = [v for v in DEFAULT_VARIANTS if not args.method or v.method in args.method]
+    options, settings = checked_settings(args, sorted({v.method for v in variants}))
     jobs, seeds, steps = _eval_jobs(args)
     check_burn_in(args.burn_in, steps)
     if args.plot:
@@ -205,20 +242,23 @@ def _cmd_eval(args) -> int:
             raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"')
         check_output_dir(args.plot)
 
-    total = len(jobs) * (len(seeds) + len(DEFAULT_VARIANTS))
+    total = len(jobs) * (len(seeds) + len(variants))
     bar = _progress(total)
     written = []
     try:
         for name, scenario in jobs:
+            targets = None  # several balls (two_balls): the error is to the nearest
             if scenario is None:
                 sequences = [load_sequence(args.input)]
                 check_burn_in(args.burn_in, sequences[0].num_steps)
                 bar.update(1)
             else:
-                sequences = []
+                sequences, targets = [], []
                 for seed in seeds:
                     bar.set_description(f"{name} seed {seed}")
-                    sequences.append(simulate(scenario, seed, num_steps=steps))
+                    seq, info = simulate_with_info(scenario, seed, num_steps=steps)
+                    sequences.append(seq)
+                    targets.append(info["balls_base"])
                     bar.update(1)
 
             def tick(label: str) -> None:
@@ -227,7 +267,7 @@ def _cmd_eval(args) -> int:
 
             result = evaluate_sequences(
                 name, sequences, options=options, settings=settings, seed=args.seed, burn_in=args.burn_in,
-                progress=tick
+                progress=tick, targets=targets, variants=variants,
             )
             bar.write(format_table(result) + "\n")
             if args.plot:
@@ -385,13 +425,14 @@ def _print_best(out: Path, record, columns: list[str], top: int, burn_in: int) -
 
 def _option_choices() -> dict[str, str]:
     from heatpf_jax.observation import KNN_METHODS
-    from heatpf_jax.presets import OBSERVATIONS, RESAMPLERS, SPAWNS
+    from heatpf_jax.presets import MODE_FINDERS, OBSERVATIONS, RESAMPLERS, SPAWNS
 
     return {
         "resampler": "one of " + ", ".join(sorted(RESAMPLERS)),
         "spawn": "one of " + ", ".join(SPAWNS),
         "spawn_box": "x_min,x_max,y_min,y_max (metres)",
-        "observation": "one of " + ", ".join(OBSERVATIONS),
+        "observation": "one of auto, " + ", ".join(OBSERVATIONS),
+        "modes": "one of " + ", ".join(MODE_FINDERS),
         "knn": "one of " + ", ".join(KNN_METHODS),
     }
 
@@ -426,7 +467,10 @@ def describe_method(method: str, options=None, settings: dict | None = None) -> 
         strict=True,
     ):
         rows.append((name, format_value(value), prop.describe(), "trainable" if prop.trainable else "frozen"))
-    unused = set(unused_options(FilterOptions()._replace(**{f: _other(f) for f in FilterOptions._fields}), [method]))
+    unused = {
+        f for f in FilterOptions._fields
+        if f in unused_options(FilterOptions()._replace(**{f: option_alternatives(f)[0]}), [method])
+    }
     choices = _option_choices()
     o_rows = [("name", "value", "allowed")]
     for name, value in options._asdict().items():
@@ -440,17 +484,6 @@ def describe_method(method: str, options=None, settings: dict | None = None) -> 
         "static options (--set NAME=VALUE; each value compiles its own program, so they cannot be swept):",
         *_table(o_rows),
     ])
-
-
-def _other(field: str):
-    """A valid value of an option other than its default (to find the options a method does not use)."""
-    from heatpf_jax.presets import FilterOptions
-
-    others = {"resampler": "residual", "spawn": "gaussian", "spawn_box": (0.0, 1.0, 0.0, 1.0),
-              "observation": "gaussian", "knn": "dense"}
-    if field in others:
-        return others[field]
-    return FilterOptions._field_defaults[field] + 1
 
 
 def _cmd_params(args) -> int:
@@ -526,7 +559,10 @@ def _build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("input", help="sequence file (.npz, version 1)")
     p_run.add_argument("--output", "-o", required=True, help="CSV with t,x,y,cov_xx,cov_xy,cov_yy (not replaced "
                        "if it exists, unless --force)")
-    p_run.add_argument("--force", action="store_true", help="replace an existing --output")
+    p_run.add_argument("--modes", metavar="MODES.csv", help="also write the modes of the particles per step: "
+                       "t,mode,weight,x,y,cov_xx,cov_xy,cov_yy, one row per valid mode (by --set modes=meanshift|"
+                       "kmeans|gmm, default meanshift; --set max_modes=K)")
+    p_run.add_argument("--force", action="store_true", help="replace existing --output and --modes files")
     p_run.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     _add_burn_in(p_run)
     _add_set(p_run)
@@ -546,6 +582,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p_eval.add_argument("--plot", metavar="DIR", help="write Fig. 4 and Fig. 6 per scenario as PNG into DIR "
                         "(created if missing; PNGs of the same names there are replaced)")
     p_eval.add_argument("--seed", type=int, default=0, help="PRNG seed of the filters (default 0)")
+    p_eval.add_argument("--method", action="append", choices=method_names(),
+                        help="a method to compare, repeatable (default: all, with the paper's aging ablations)")
     _add_set(p_eval, "a parameter of any method")
     p_eval.set_defaults(func=_cmd_eval)
 

@@ -28,6 +28,7 @@ __all__ = [
     "Variant",
     "evaluate_sequences",
     "format_table",
+    "mode_coverage",
     "plot_scenario",
 ]
 
@@ -48,9 +49,11 @@ DEFAULT_VARIANTS = (
     Variant("conventional", "conventional"),
     Variant("kalman", "kalman"),
     Variant("bitbots2018", "bitbots2018"),
-    # Aging ablations (III-C): measurements that never age, and measurements that die at once.
-    Variant("heatmap, no aging (v=0, l=0)", "heatmap", {"aging": 0.0, "min_weight": 0.0}),
-    Variant("heatmap, v=1 (no memory)", "heatmap", {"aging": 1.0}),
+    Variant("paper", "paper"),
+    Variant("extended", "extended"),
+    # Aging ablations of the paper's filter (III-C): measurements that never age, and that die at once.
+    Variant("paper, no aging (v=0, l=0)", "paper", {"aging": 0.0, "min_weight": 0.0}),
+    Variant("paper, v=1 (no memory)", "paper", {"aging": 1.0}),
 )
 
 
@@ -76,6 +79,7 @@ class ScenarioResult:
     truth: np.ndarray  # [S, T, 2]
     methods: list[MethodResult]
     burn_in: int
+    num_objects: int = 1  # errors are to the nearest of this many objects (two_balls: 2)
 
     def by_name(self, name: str) -> MethodResult | None:
         return next((m for m in self.methods if m.variant.name == name), None)
@@ -102,6 +106,7 @@ def evaluate_sequences(
     seed: int = 0,
     burn_in: int = DEFAULT_BURN_IN,
     progress: Callable[[str], None] | None = None,
+    targets: list[np.ndarray] | None = None,
 ) -> ScenarioResult:
     """Runs every variant on every sequence (with ground truth) of one scenario.
 
@@ -115,6 +120,9 @@ def evaluate_sequences(
         seed: PRNG seed; sequence i uses key ``fold_in(key(seed), i)`` for every variant.
         burn_in: steps excluded from the statistics (convergence from the initial prior).
         progress: called with a label after each variant.
+        targets: per sequence ``[T, B, 2]``, every object the tracker may follow (``two_balls``: both
+            balls, ``simulate_with_info``'s ``balls_base``): the error is then the distance to the
+            nearest of them. Default: ``ground_truth`` alone.
 
     Returns:
         :class:`ScenarioResult`.
@@ -126,6 +134,9 @@ def evaluate_sequences(
         raise ValueError(f"burn_in: {burn_in} leaves no step of the {sequences[0].num_steps}-step sequences")
     batch = _stack(sequences)
     truth = np.asarray(batch.ground_truth, np.float64)
+    objects = truth[:, :, None, :] if targets is None else np.stack([np.asarray(t, np.float64) for t in targets])
+    if objects.shape[:2] != truth.shape[:2] or objects.shape[-1] != 2:
+        raise ValueError(f"targets: expected [T, B, 2] per sequence, got {objects.shape[1:]}")
     batch = batch._replace(ground_truth=None)
     keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(np.arange(len(sequences)))
     results = []
@@ -137,10 +148,30 @@ def evaluate_sequences(
         est = np.asarray(out, np.float64)
         if not np.all(np.isfinite(est)):
             raise RuntimeError(f"{variant.name}: non-finite estimate on scenario {name!r}; please report this")
-        results.append(MethodResult(variant, est, np.linalg.norm(est - truth, axis=-1)))
+        errors = np.min(np.linalg.norm(est[:, :, None, :] - objects, axis=-1), axis=-1)
+        results.append(MethodResult(variant, est, errors))
         if progress is not None:
             progress(f"{name}: {variant.name}")
-    return ScenarioResult(name=name, truth=truth, methods=results, burn_in=burn_in)
+    return ScenarioResult(name=name, truth=truth, methods=results, burn_in=burn_in, num_objects=objects.shape[2])
+
+
+def mode_coverage(
+    mode_mean: np.ndarray, mode_valid: np.ndarray, objects: np.ndarray, radius: float = 0.3
+) -> np.ndarray:
+    """Per step, whether every object is within ``radius`` of a valid mode.
+
+    Args:
+        mode_mean: ``[..., T, K, 2]`` mode means (``StepInfo.modes.mean``).
+        mode_valid: ``bool [..., T, K]``.
+        objects: ``[..., T, B, 2]`` the objects (``balls_base``).
+        radius: metres.
+
+    Returns:
+        ``bool [..., T]``.
+    """
+    d = np.linalg.norm(np.asarray(objects)[..., :, None, :] - np.asarray(mode_mean)[..., None, :, :], axis=-1)
+    d = np.where(np.asarray(mode_valid)[..., None, :], d, np.inf)  # [..., T, B, K]
+    return np.all(np.min(d, axis=-1) <= radius, axis=-1)
 
 
 def format_table(result: ScenarioResult, reference: str = "conventional") -> str:
@@ -149,7 +180,8 @@ def format_table(result: ScenarioResult, reference: str = "conventional") -> str
     ref_stats = ref.stats(result.burn_in) if ref is not None else None
     s, t = result.truth.shape[:2]
     lines = [
-        f"scenario {result.name}: {s} sequence(s) x {t} steps, errors after step {result.burn_in}",
+        f"scenario {result.name}: {s} sequence(s) x {t} steps, errors after step {result.burn_in}"
+        + (f" (to the nearest of {result.num_objects} balls)" if result.num_objects > 1 else ""),
         f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18} {'last 30 [m]':>13}",
     ]
     for m in result.methods:

@@ -10,6 +10,9 @@ One step, in the order of the sequence-file contract::
     resampling.resample     ESS trigger + index resampler (III-E)     heatpf_jax.resampling
     injectors[i].inject     explorers (III-E), ...                    heatpf_jax.injection
 
+Beside the pipeline, ``modes.modes`` reports fixed-size modes of the weighted particles (III-F, V;
+Olufs 3.2) in ``StepInfo.modes``: none by default (:class:`~heatpf_jax.modes.NoModes`).
+
 The particles are sorted by decreasing weight once per step (:func:`heatpf_jax.numerics.order_by_weight`);
 the estimator and the resampling strategy share that order. A :class:`Filter` is a ``NamedTuple`` of
 frozen, hashable pieces plus ``num_particles``: it is the static argument of ``jit``, and two equal
@@ -32,6 +35,7 @@ from heatpf_jax.buffers import AgingBuffer, AgingParams
 from heatpf_jax.estimate import TopFraction, TopFractionParams
 from heatpf_jax.injection import ExplorerParams, InjectionContext, UniformBox, UniformExplorers
 from heatpf_jax.measurements import Measurements, empty_measurements
+from heatpf_jax.modes import Modes, NoModes
 from heatpf_jax.motion import RandomWalk, RandomWalkParams
 from heatpf_jax.numerics import normalise_log, order_by_weight
 from heatpf_jax.observation import InverseDistance, InverseDistanceParams
@@ -66,6 +70,7 @@ class FilterParams(NamedTuple):
     estimator: Any = TopFractionParams()
     resampling: Any = ESSParams()
     injectors: dict = {"explorers": ExplorerParams()}  # noqa: RUF012 (never mutated)
+    modes: Any = NoModes().default_params()
 
 
 class FilterState(NamedTuple):
@@ -106,6 +111,8 @@ class StepInfo(NamedTuple):
             same data, not across data sets. ``0`` when the buffer is empty.
         ancestors: ``int32 [N]`` the particle each slot was copied from (its own index without
             resampling); slots refilled by injectors still name the ancestor they replaced.
+        modes: :class:`~heatpf_jax.modes.Modes` of the weighted particles before resampling
+            (``K = Filter.modes.num_modes``, 0 by default).
     """
 
     mean: Float[Array, "2"]
@@ -116,6 +123,7 @@ class StepInfo(NamedTuple):
     resampled: Bool[Array, ""]
     log_likelihood: Float[Array, ""]
     ancestors: Int[Array, " n"]
+    modes: Modes
 
 
 def _piece_names(injectors) -> list[str]:
@@ -140,6 +148,7 @@ class Filter(NamedTuple):
             their ``name`` attributes must differ.
         initial: initial distribution of the particles (a :class:`~heatpf_jax.injection.UniformBox`).
         num_particles: N.
+        modes: multi-modal output (:mod:`heatpf_jax.modes`), none by default.
     """
 
     motion: Any = RandomWalk()
@@ -151,6 +160,7 @@ class Filter(NamedTuple):
     injectors: tuple = (UniformExplorers(),)
     initial: Any = UniformBox()
     num_particles: int = 500
+    modes: Any = NoModes()
 
     # --- Parameters -------------------------------------------------------------------------------------
 
@@ -166,6 +176,7 @@ class Filter(NamedTuple):
             estimator=of(self.estimator),
             resampling=of(self.resampling),
             injectors={inj.name: of(inj) for inj in self.injectors},
+            modes=of(self.modes),
         )
 
     def default_params(self) -> FilterParams:
@@ -192,7 +203,7 @@ class Filter(NamedTuple):
         if len(set(names)) != len(names):
             raise ValueError(f"injectors: names must differ, got {names}")
         for piece in (self.motion, self.source, self.buffer, self.observation, self.estimator, self.resampling,
-                      self.initial, *self.injectors):
+                      self.initial, self.modes, *self.injectors):
             if hasattr(piece, "validate"):
                 piece.validate()
 
@@ -242,9 +253,12 @@ class Filter(NamedTuple):
         log_w = normalise_log(unnormalised, log_likelihood)
         weights = jnp.exp(log_w)
         order = order_by_weight(weights)  # one sort, shared by the estimator and the resampling
+        particles = self.motion.remember(particles, weights)
 
         est = self.estimator.estimate(particles, weights, order, params.estimator)
-        res = self.resampling.resample(k_res, log_w, order, params.resampling)
+        # A key of its own (folded, so that the other stages' keys stay those of a filter without modes).
+        modes = self.modes.modes(jax.random.fold_in(key, 7), particles.xy, weights, params.modes)
+        res = self.resampling.resample(k_res, particles.xy, log_w, order, params.resampling)
         particles = jax.tree.map(lambda x: x[res.ancestors], particles)
 
         context = InjectionContext(
@@ -255,6 +269,7 @@ class Filter(NamedTuple):
             estimate=est,
             motion=self.motion,
             motion_params=params.motion,
+            measurements=buffer,
         )
         # One injector takes the step's key itself; several split it.
         keys = (k_inject,) if len(self.injectors) == 1 else tuple(jax.random.split(k_inject, len(self.injectors)))
@@ -277,5 +292,6 @@ class Filter(NamedTuple):
             resampled=res.resampled,
             log_likelihood=log_likelihood,
             ancestors=res.ancestors,
+            modes=modes,
         )
         return new_state, info

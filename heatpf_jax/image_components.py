@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from heatpf_jax.camera import project_pixel
+from heatpf_jax.camera import ground_jacobian, project_pixel
 from heatpf_jax.measurements import Measurements
 
 __all__ = ["cluster_measurement", "connected_components", "strongest_cluster_centre"]
@@ -104,9 +104,11 @@ def cluster_measurement(
     uv, peak, found = strongest_cluster_centre(heatmap, threshold)
     xy, ray_ok = project_pixel(uv, intrinsics, cam_to_base, plane_height, max_distance)
     valid = found & ray_ok
-    first = jnp.arange(size) == 0
+    first_valid = (jnp.arange(size) == 0) & valid
+    footprint = ground_jacobian(uv, intrinsics, cam_to_base, plane_height)  # of the pixel at the centre
     return Measurements(
-        xy=jnp.where((first & valid)[:, None], jnp.broadcast_to(xy[None, :], (size, 2)), 0.0),
-        weight=jnp.where(first & valid, peak, 0.0),
-        valid=first & valid,
+        xy=jnp.where(first_valid[:, None], jnp.broadcast_to(xy[None, :], (size, 2)), 0.0),
+        weight=jnp.where(first_valid, peak, 0.0),
+        valid=first_valid,
+        footprint=jnp.where(first_valid[:, None, None], footprint[None], 0.0),
     )

@@ -118,6 +118,8 @@ class InjectionContext(NamedTuple):
         estimate: this step's estimate (``mean`` ``[2]``).
         motion: the filter's motion model (static), which makes particles from positions.
         motion_params: its params.
+        measurements: this step's measurement buffer (:class:`~heatpf_jax.measurements.Measurements`),
+            for injectors that draw from the measurements; ``None`` where there is none.
     """
 
     particles: Any
@@ -127,6 +129,7 @@ class InjectionContext(NamedTuple):
     estimate: Any
     motion: Any
     motion_params: Any
+    measurements: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

@@ -6,8 +6,11 @@ onto the plane ``z = ball radius`` and becomes a measurement ``m = (r, w)`` with
 measurements, the buffered ones age: ``w <- w - v``; measurements with
 ``w < l`` are removed. Section III-D: odometry moves buffered measurements too.
 
+Each measurement also carries its pixel's ground *footprint* (the projection's Jacobian, metres per
+pixel), which range-aware observation models (:mod:`heatpf_jax.observation_range`) read.
+
 Buffers have a fixed size with a ``valid`` mask so that every function here is
-jittable and vmappable; invalid slots hold ``xy = 0, weight = 0``.
+jittable and vmappable; invalid slots hold ``xy = 0, weight = 0, footprint = 0``.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from heatpf_jax.camera import project_pixel
+from heatpf_jax.camera import ground_jacobian, project_pixel
 from heatpf_jax.motion import apply_odometry
 
 __all__ = [
@@ -40,11 +43,17 @@ class Measurements(NamedTuple):
         xy: ``float32 [M, 2]`` positions in the base frame, metres.
         weight: ``float32 [M]`` weights (heat-map activations, aged).
         valid: ``bool [M]`` which slots hold a measurement.
+        footprint: ``float32 [M, 2, 2]`` the ground spacing of each measurement's pixel: the Jacobian
+            ``d (x, y) / d (u, v)`` of its projection (:func:`~heatpf_jax.camera.ground_jacobian`), metres
+            per pixel; column 0 is the ground step of one pixel to the right (lateral), column 1 of one
+            row down (radial, several times longer far away). Zeros in invalid slots and for sources
+            without pixels. Odometry turns it with the base frame; aging leaves it unchanged.
     """
 
     xy: Float[Array, "m 2"]
     weight: Float[Array, " m"]
     valid: Bool[Array, " m"]
+    footprint: Float[Array, "m 2 2"]
 
 
 def empty_measurements(size: int) -> Measurements:
@@ -53,6 +62,7 @@ def empty_measurements(size: int) -> Measurements:
         xy=jnp.zeros((size, 2), jnp.float32),
         weight=jnp.zeros((size,), jnp.float32),
         valid=jnp.zeros((size,), bool),
+        footprint=jnp.zeros((size, 2, 2), jnp.float32),
     )
 
 
@@ -106,9 +116,10 @@ def project_heatmap(
     """Projects every heat-map pixel at or above ``threshold`` onto the ground (III-A).
 
     Each pixel centre defines a ray from the camera; its intersection with the
-    plane ``z = plane_height`` is the measurement's position and the pixel's
-    activation its weight. Rays that miss the plane, meet it behind the camera
-    or farther than ``max_distance`` from the base origin are invalid. When more
+    plane ``z = plane_height`` is the measurement's position, the pixel's
+    activation its weight and the projection's Jacobian there its footprint.
+    Rays that miss the plane, meet it behind the camera or farther than
+    ``max_distance`` from the base origin are invalid. When more
     than ``max_measurements`` pixels pass, the highest activations are kept.
     Kept measurements are in raster order (row-major), valid ones first
     whenever all passing pixels fit.
@@ -145,11 +156,13 @@ def project_heatmap(
     )
     valid = passes[idx] & ray_ok
     weight = act[idx]
+    footprint = jax.vmap(ground_jacobian, in_axes=(0, None, None, None))(uv, intrinsics, cam_to_base, plane_height)
     pad = m - k
     return Measurements(
         xy=jnp.pad(jnp.where(valid[:, None], xy, 0.0), ((0, pad), (0, 0))),
         weight=jnp.pad(jnp.where(valid, weight, 0.0), (0, pad)),
         valid=jnp.pad(valid, (0, pad)),
+        footprint=jnp.pad(jnp.where(valid[:, None, None], footprint, 0.0), ((0, pad), (0, 0), (0, 0))),
     )
 
 
@@ -182,19 +195,26 @@ def age_measurements(
     """Eq. (2): subtracts ``aging`` (v) from every weight, drops weights below ``min_weight`` (l)."""
     weight = measurements.weight - aging
     valid = measurements.valid & (weight >= min_weight)
-    return Measurements(
-        xy=measurements.xy, weight=jnp.where(valid, weight, 0.0), valid=valid
-    )
+    return measurements._replace(weight=jnp.where(valid, weight, 0.0), valid=valid)
 
 
 def move_measurements(measurements: Measurements, odometry: Float[ArrayLike, "3"]) -> Measurements:
     """Moves buffered measurements into the base frame after ``odometry`` (III-C, III-D).
 
     Measurements are data, not hypotheses: they move with the odometry as given,
-    without the particles' motion noise.
+    without the particles' motion noise. Their footprints (ground vectors) turn with
+    the frame, ``R(dtheta)^T F``, and are not translated.
     """
+    odometry = jnp.asarray(odometry)
     xy = apply_odometry(measurements.xy, odometry)
-    return measurements._replace(xy=jnp.where(measurements.valid[:, None], xy, 0.0))
+    valid = measurements.valid
+    # Each footprint column is a ground vector: apply_odometry's rotation R(dtheta)^T, without the shift.
+    c, s = jnp.cos(odometry[2]), jnp.sin(odometry[2])
+    fx, fy = measurements.footprint[:, 0, :], measurements.footprint[:, 1, :]
+    footprint = jnp.stack([c * fx + s * fy, -s * fx + c * fy], axis=1)
+    return measurements._replace(
+        xy=jnp.where(valid[:, None], xy, 0.0), footprint=jnp.where(valid[:, None, None], footprint, 0.0)
+    )
 
 
 def update_buffer(
@@ -222,7 +242,7 @@ def update_buffer(
         The buffer for this step.
     """
     new_valid = new.valid & (new.weight >= min_weight)
-    new = Measurements(new.xy, jnp.where(new_valid, new.weight, 0.0), new_valid)
+    new = new._replace(weight=jnp.where(new_valid, new.weight, 0.0), valid=new_valid)
     use_new = jnp.asarray(has_new) & jnp.any(new_valid)
     aged = age_measurements(buffer, aging, min_weight)
     return jax.tree.map(lambda a, b: jnp.where(use_new, a, b), new, aged)

@@ -178,6 +178,10 @@ class RandomWalk:
         )
         return particles._replace(xy=xy)
 
+    def remember(self, particles: Particles, weights: Float[Array, " n"]) -> Particles:
+        del weights
+        return particles
+
 
 class DiffusionParams(NamedTuple):
     """Numbers of :class:`DiffusionOnly`.
@@ -209,3 +213,7 @@ class DiffusionOnly:
     def predict(self, key: PRNGKeyArray, particles: Particles, inputs, params: DiffusionParams) -> Particles:
         del inputs
         return particles._replace(xy=diffuse(key, particles.xy, params.diffusion_std))
+
+    def remember(self, particles: Particles, weights: Float[Array, " n"]) -> Particles:
+        del weights
+        return particles

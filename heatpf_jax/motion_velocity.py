@@ -28,7 +28,7 @@ from heatpf_jax.motion import apply_odometry
 from heatpf_jax.numerics import safe_sqrt
 from heatpf_jax.params import nonnegative
 
-__all__ = ["ConstantVelocity", "ConstantVelocityParams", "VelocityParticles"]
+__all__ = ["ConstantVelocity", "ConstantVelocityParams", "VelocityParticles", "move_with_odometry"]
 
 
 class VelocityParticles(NamedTuple):
@@ -80,19 +80,44 @@ class ConstantVelocity:
     ) -> VelocityParticles:
         xy, v = particles.xy, particles.v
         n = xy.shape[0]
-        odometry = jnp.asarray(inputs.odometry, xy.dtype)
         dt = jnp.asarray(inputs.dt, xy.dtype)
         noise = jax.random.normal(key, (n, 7), xy.dtype)
-        # Odometry, each particle with its own noisy copy: translation noise scales with the distance
-        # moved, rotation noise with the angle turned (as heatpf_jax.motion.move_particles).
-        dist = safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
-        shift = odometry[None, :2] + params.odom_trans_noise * dist * noise[:, :2]
-        theta = odometry[2] + params.odom_rot_noise * jnp.abs(odometry[2]) * noise[:, 2]
-        xy = apply_odometry(xy, jnp.concatenate([shift, theta[:, None]], axis=1))
-        c, s = jnp.cos(theta), jnp.sin(theta)
-        v = jnp.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1]], axis=-1)
+        xy, v = move_with_odometry(xy, v, inputs.odometry, noise[:, :3], params.odom_trans_noise, params.odom_rot_noise)
         # The ball's own motion over dt, and the position diffusion.
         accel = params.accel_std * noise[:, 3:5]
         xy = xy + v * dt + 0.5 * accel * dt * dt + params.diffusion_std * noise[:, 5:7]
         v = v + accel * dt
         return VelocityParticles(xy=xy, v=v)
+
+    def remember(self, particles: VelocityParticles, weights: Float[Array, " n"]) -> VelocityParticles:
+        del weights
+        return particles
+
+
+def move_with_odometry(
+    xy: Float[Array, "n 2"],
+    v: Float[Array, "n 2"],
+    odometry: Float[Array, "3"],
+    noise: Float[Array, "n 3"],
+    trans_noise: Float[Array, ""],
+    rot_noise: Float[Array, ""],
+) -> tuple[Float[Array, "n 2"], Float[Array, "n 2"]]:
+    """Moves positions and velocities into the new base frame, each particle with its own noisy odometry.
+
+    Positions: ``R(theta_i)^T (p - d_i)`` (III-D); velocities: ``R(theta_i)^T v`` (a world-fixed velocity
+    seen from the turned base). Translation noise scales with the distance moved, rotation noise with
+    the angle turned (as :func:`heatpf_jax.motion.move_particles`).
+
+    Args:
+        xy: positions. v: velocities. odometry: ``(dx, dy, dtheta)``.
+        noise: standard normal draws, one row per particle (translation x, y; rotation).
+        trans_noise, rot_noise: fractions of the distance moved and the angle turned.
+    """
+    odometry = jnp.asarray(odometry, xy.dtype)
+    dist = safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
+    shift = odometry[None, :2] + trans_noise * dist * noise[:, :2]
+    theta = odometry[2] + rot_noise * jnp.abs(odometry[2]) * noise[:, 2]
+    xy = apply_odometry(xy, jnp.concatenate([shift, theta[:, None]], axis=1))
+    c, s = jnp.cos(theta), jnp.sin(theta)
+    v = jnp.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1]], axis=-1)
+    return xy, v

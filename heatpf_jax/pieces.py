@@ -72,6 +72,11 @@ class MotionModel(_Piece, Protocol):
 
     def predict(self, key: PRNGKeyArray, particles: Any, inputs: StepInputs, params: Any) -> Any: ...
 
+    def remember(self, particles: Any, weights: Float[Array, " n"]) -> Any:
+        """Particles after the update, given their normalised weights (before resampling, so that
+        copies inherit what is stored): the identity for most models; the mass-inertia model keeps
+        each particle's weight to scale its next spread."""
+
 
 @runtime_checkable
 class MeasurementSource(_Piece, Protocol):
@@ -114,8 +119,15 @@ class ResamplingStrategy(_Piece, Protocol):
     """Decides whether and how to resample (III-E); see :class:`heatpf_jax.resampling.Resampled`."""
 
     def resample(
-        self, key: PRNGKeyArray, weights: Float[Array, " n"], order: Int[Array, " n"], params: Any
-    ) -> Any: ...
+        self,
+        key: PRNGKeyArray,
+        xy: Float[Array, "n 2"],
+        log_weights: Float[Array, " n"],
+        order: Int[Array, " n"],
+        params: Any,
+    ) -> Any:
+        """Ancestors and new weights from the particles' positions (cluster-wise resampling uses
+        them; plain resampling ignores them), normalised log weights and their order by weight."""
 
 
 @runtime_checkable

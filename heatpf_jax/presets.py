@@ -16,12 +16,18 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+from heatpf_jax import params as P
 from heatpf_jax.baselines.kalman import KalmanFilter
 from heatpf_jax.buffers import AgingBuffer, LatestOnly
 from heatpf_jax.estimate import TopFraction, TopFractionParams
+from heatpf_jax.estimate_modes import DominantMode
 from heatpf_jax.filter import Filter, FilterParams
-from heatpf_jax.injection import ExplorerParams, GaussianExplorers, UniformBox, UniformExplorers
+from heatpf_jax.injection import ExplorerParams, GaussianExplorers, RandomParticles, UniformBox, UniformExplorers
+from heatpf_jax.injection_sensor import MeasurementExplorers
+from heatpf_jax.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
 from heatpf_jax.motion import DiffusionOnly, DiffusionParams, RandomWalk
+from heatpf_jax.motion_inertia import MassInertia
+from heatpf_jax.motion_velocity import ConstantVelocity
 from heatpf_jax.observation import (
     KNN_METHODS,
     Floored,
@@ -30,12 +36,15 @@ from heatpf_jax.observation import (
     InverseDistance,
     InverseDistanceParams,
 )
+from heatpf_jax.observation_range import FootprintTemplate
 from heatpf_jax.resampling import RESAMPLERS, ESSParams, ESSResampling
+from heatpf_jax.resampling_clustered import ClusterResampling
 from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
 
 __all__ = [
     "BITBOTS_BOX",
     "METHODS",
+    "MODE_FINDERS",
     "Method",
     "OBSERVATIONS",
     "SPAWNS",
@@ -44,13 +53,24 @@ __all__ = [
     "bitbots2018_params",
     "build",
     "conventional_filter",
+    "extended_filter",
+    "extended_params",
     "heatmap_filter",
+    "heatmap_params",
+    "paper_filter",
     "kalman_baseline",
     "validate_options",
 ]
 
 SPAWNS = ("uniform", "gaussian")
-OBSERVATIONS = {"inverse_distance": InverseDistance, "gaussian": GaussianKernel}
+MODE_FINDERS = {
+    "none": lambda k: NoModes(),
+    "meanshift": lambda k: MeanShiftModes(max_modes=k),
+    "kmeans": lambda k: KMeansModes(num_modes=k),
+    "gmm": lambda k: GaussianMixtureModes(num_modes=k),
+}
+OBSERVATIONS = {"inverse_distance": InverseDistance, "gaussian": GaussianKernel, "range_aware": FootprintTemplate}
+AUTO = "auto"  # a static option left to the method's own choice
 
 
 class FilterOptions(NamedTuple):
@@ -67,8 +87,14 @@ class FilterOptions(NamedTuple):
         spawn_box: ``(x_min, x_max, y_min, y_max)`` in the base frame, metres: initial particles and
             uniform explorers. The default covers what a humanoid's head camera sees in front of it.
         downscale: integer block-averaging of the heat map before projection (III-A).
-        observation: ``"inverse_distance"`` (eq. 1, default) or ``"gaussian"`` (kernel std ``obs_std``).
+        observation: ``"auto"`` (the method's own: eq. 1 for ``paper``, ``"range_aware"`` for
+            ``heatmap`` and ``extended``), ``"inverse_distance"`` (eq. 1), ``"gaussian"`` (kernel std
+            ``obs_std``) or ``"range_aware"`` (:class:`~heatpf_jax.observation_range.FootprintTemplate`:
+            each pixel's kernel follows its ground footprint).
         knn: k-nearest search, ``"auto"`` (default), ``"blocked"`` or ``"dense"``: all exact.
+        modes: multi-modal output in ``StepInfo.modes`` (:mod:`heatpf_jax.modes`): ``"none"``
+            (default), ``"meanshift"``, ``"kmeans"`` or ``"gmm"`` (a Gaussian mixture fitted by EM).
+        max_modes: K, the number of mode slots.
     """
 
     num_particles: int = 500
@@ -78,15 +104,17 @@ class FilterOptions(NamedTuple):
     spawn: str = "uniform"
     spawn_box: tuple[float, float, float, float] = (0.0, 7.0, -4.0, 4.0)
     downscale: int = 1
-    observation: str = "inverse_distance"
+    observation: str = AUTO
     knn: str = "auto"
+    modes: str = "none"
+    max_modes: int = 3
 
 
 def validate_options(options: FilterOptions) -> None:
     """Raises ``ValueError`` naming the option if it is unusable."""
     if not isinstance(options, FilterOptions):
         raise TypeError(f"options: expected FilterOptions, got {type(options).__name__}")
-    for name in ("num_particles", "max_measurements", "k_max", "downscale"):
+    for name in ("num_particles", "max_measurements", "k_max", "downscale", "max_modes"):
         value = getattr(options, name)
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ValueError(f"{name}: must be a positive integer, got {value!r}")
@@ -94,8 +122,10 @@ def validate_options(options: FilterOptions) -> None:
         raise ValueError(f"resampler: must be one of {sorted(RESAMPLERS)}, got {options.resampler!r}")
     if options.spawn not in SPAWNS:
         raise ValueError(f"spawn: must be one of {list(SPAWNS)}, got {options.spawn!r}")
-    if options.observation not in OBSERVATIONS:
-        raise ValueError(f"observation: must be one of {list(OBSERVATIONS)}, got {options.observation!r}")
+    if options.observation not in (AUTO, *OBSERVATIONS):
+        raise ValueError(f"observation: must be one of {[AUTO, *OBSERVATIONS]}, got {options.observation!r}")
+    if options.modes not in MODE_FINDERS:
+        raise ValueError(f"modes: must be one of {list(MODE_FINDERS)}, got {options.modes!r}")
     if options.knn not in KNN_METHODS:
         raise ValueError(f"knn: must be one of {list(KNN_METHODS)}, got {options.knn!r}")
     box = tuple(options.spawn_box)
@@ -103,27 +133,78 @@ def validate_options(options: FilterOptions) -> None:
         raise ValueError(f"spawn_box: must be finite (x_min, x_max, y_min, y_max) with min < max, got {box!r}")
 
 
-def _particle_filter(options: FilterOptions, source) -> Filter:
+def _particle_filter(options: FilterOptions, source, observation: str = "inverse_distance") -> Filter:
     validate_options(options)
     box = tuple(float(b) for b in options.spawn_box)
     explorers = UniformExplorers(box=box) if options.spawn == "uniform" else GaussianExplorers()
+    observation = observation if options.observation == AUTO else options.observation
     return Filter(
         motion=RandomWalk(),
         source=source,
         buffer=AgingBuffer(),
-        observation=OBSERVATIONS[options.observation](k_max=options.k_max, knn=options.knn),
+        observation=OBSERVATIONS[observation](k_max=options.k_max, knn=options.knn),
         estimator=TopFraction(),
         resampling=ESSResampling(resampler=RESAMPLERS[options.resampler]),
         injectors=(explorers,),
         initial=UniformBox(box=box),
         num_particles=options.num_particles,
+        modes=MODE_FINDERS[options.modes](options.max_modes),
     )
 
 
+def _pixels(options: FilterOptions) -> PixelSource:
+    return PixelSource(max_measurements=options.max_measurements, downscale=options.downscale)
+
+
+def paper_filter(options: FilterOptions = FilterOptions()) -> Filter:
+    """The 2019 paper's filter exactly (``--method paper``): every pixel above the threshold is a
+    measurement (III-A), eq. (1), aging (III-C), a static-position random walk with odometry (III-D)."""
+    return _particle_filter(options, _pixels(options))
+
+
 def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
-    """The paper's filter: every pixel above the threshold is a measurement (III-A)."""
-    source = PixelSource(max_measurements=options.max_measurements, downscale=options.downscale)
-    return _particle_filter(options, source)
+    """The product's heat-map filter (``--method heatmap``): the paper's pipeline with a velocity state
+    (:class:`~heatpf_jax.motion_velocity.ConstantVelocity`) and a range-aware matched filter over the k
+    nearest pixels (:class:`~heatpf_jax.observation_range.FootprintTemplate`, each pixel's kernel as wide
+    as its ground footprint) instead of eq. (1)'s inverse distance, and explorers drawn from the
+    measurements beside the uniform ones (:class:`~heatpf_jax.injection_sensor.MeasurementExplorers`);
+    its default params are :func:`heatmap_params`."""
+    base = _particle_filter(options, _pixels(options), observation="range_aware")
+    return base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers()))
+
+
+def heatmap_params(model: Filter) -> FilterParams:
+    """The heat-map filter's defaults, chosen on simulated seeds 100-103 (README, "Defaults"): white-noise
+    acceleration 5 m/s^2, new particles' speed std 3 m/s (a kicked ball), aging 0.6 per step."""
+    updates = {"motion.accel_std": 5.0, "motion.spawn_speed_std": 3.0, "buffer.aging": 0.6, "modes.bandwidth": 0.1}
+    if isinstance(model.observation, GaussianKernel):
+        updates |= {"observation.k": min(10, model.observation.k_max), "observation.obs_std": 0.05}
+    return P.set_by_name(model.default_params(), model.properties(), updates, skip_unknown=True)
+
+
+def extended_filter(options: FilterOptions = FilterOptions()) -> Filter:
+    """Olufs et al.'s combination (``--method extended``): the mass-inertia motion model (eq. 4-6),
+    cluster-wise resampling by mean shift with uniform weights per cluster (sec. 3.2, every cluster a
+    hypothesis of its own), random particles (50 of 300) and explorers drawn from the measurements
+    beside the uniform explorers, and the dominant mode as the output; the heat map weighted as in
+    ``heatmap``. Its default params are :func:`extended_params`."""
+    box = tuple(float(b) for b in options.spawn_box)
+    base = _particle_filter(options, _pixels(options), observation="range_aware")
+    return base._replace(
+        motion=MassInertia(),
+        resampling=ClusterResampling(resampler=RESAMPLERS[options.resampler], correct=False),
+        estimator=DominantMode(),
+        injectors=(*base.injectors, RandomParticles(box=box), MeasurementExplorers()),
+    )
+
+
+def extended_params(model: Filter) -> FilterParams:
+    """The extended filter's defaults, chosen on simulated seeds 100-103 of ``two_balls`` (README, "Defaults"):
+    clusters and modes of 0.1 m bandwidth (a ball's particle cloud; 0.3 m merged two balls 0.6 m apart),
+    at least 20 % of the particles for every cluster, 5 % explorers at the measurements."""
+    updates = {"resampling.bandwidth": 0.1, "resampling.min_share": 0.2, "estimator.bandwidth": 0.1,
+               "modes.bandwidth": 0.1}
+    return P.set_by_name(heatmap_params(model), model.properties(), updates, skip_unknown=True)
 
 
 def conventional_filter(options: FilterOptions = FilterOptions()) -> Filter:
@@ -166,6 +247,7 @@ def bitbots2018(options: FilterOptions = FilterOptions()) -> Filter:
         injectors=(UniformExplorers(box=BITBOTS_BOX),),
         initial=UniformBox(box=BITBOTS_BOX),
         num_particles=2000,
+        modes=MODE_FINDERS[options.modes](options.max_modes),
     )
 
 
@@ -182,11 +264,19 @@ def bitbots2018_params() -> FilterParams:
     )
 
 
+def _bitbots_method(model: Filter) -> "Method":
+    return Method(model, bitbots2018_params()._replace(modes=model.modes.default_params()))
+
+
 class Method(NamedTuple):
     """A named method: its model (static) and its default params."""
 
     model: Any
     params: Any
+
+
+def _tuned(model, make_params: Callable[[Any], FilterParams]) -> Method:
+    return Method(model, make_params(model))
 
 
 def _with_defaults(make: Callable[[FilterOptions], Any]) -> Callable[[FilterOptions], Method]:
@@ -198,10 +288,12 @@ def _with_defaults(make: Callable[[FilterOptions], Any]) -> Callable[[FilterOpti
 
 
 METHODS: dict[str, Callable[[FilterOptions], Method]] = {
-    "heatmap": _with_defaults(heatmap_filter),
+    "heatmap": lambda options: _tuned(heatmap_filter(options), heatmap_params),
+    "paper": _with_defaults(paper_filter),
+    "extended": lambda options: _tuned(extended_filter(options), extended_params),
     "conventional": _with_defaults(conventional_filter),
     "kalman": _with_defaults(kalman_baseline),
-    "bitbots2018": lambda options: Method(bitbots2018(options), bitbots2018_params()),
+    "bitbots2018": lambda options: _bitbots_method(bitbots2018(options)),
 }
 
 

@@ -182,8 +182,14 @@ class ESSResampling:
             raise ValueError(f"resampler: must be a function (key, weights, num) -> indices, got {self.resampler!r}")
 
     def resample(
-        self, key: PRNGKeyArray, log_weights: Float[Array, " n"], order: Int[Array, " n"], params: ESSParams
+        self,
+        key: PRNGKeyArray,
+        xy: Float[Array, "n 2"],
+        log_weights: Float[Array, " n"],
+        order: Int[Array, " n"],
+        params: ESSParams,
     ) -> Resampled:
+        del xy
         n = log_weights.shape[0]
         weights = jnp.exp(log_weights)
         ess = effective_sample_size(weights)

@@ -149,10 +149,26 @@ def unused_options(options, methods) -> list[str]:
         value = getattr(options, name)
         if value == getattr(default, name):
             continue
-        changed = default._replace(**{name: value})
-        if all(build(m, changed).model == build(m, default).model for m in methods):
+        candidates = [value, *option_alternatives(name)]
+        if all(
+            build(m, default._replace(**{name: v})).model == build(m, default).model
+            for m in methods
+            for v in candidates
+        ):
             unused.append(name)
     return unused
+
+
+def option_alternatives(field: str) -> list:
+    """Valid values of a static option other than its default: an option that none of them changes is
+    one a method does not use (``"observation"`` needs two: ``"auto"`` is already one of them for a method)."""
+    from heatpf_jax.presets import FilterOptions
+
+    others = {"resampler": ["residual"], "spawn": ["gaussian"], "spawn_box": [(0.0, 1.0, 0.0, 1.0)],
+              "observation": ["gaussian", "inverse_distance"], "knn": ["dense"], "modes": ["kmeans"]}
+    if field in others:
+        return others[field]
+    return [FilterOptions._field_defaults[field] + 1]
 
 
 def grid_config(options, grid: dict[str, list], assignments: list[str]):

@@ -90,8 +90,24 @@ def _k_leaf(model) -> int | None:
 
 @partial(jax.jit, static_argnames=("model", "chunk", "mesh"))
 def _sweep_jit(key, sequence: Sequence, params, model, chunk: int, mesh: Mesh):
+    def info_of(p):
+        return run(key, sequence, p, model).info
+
     def local(p_local):
-        return lax.map(lambda p: run(key, sequence, p, model).info, p_local, batch_size=chunk)
+        # lax.map's batching cannot reshape size-0 leaves (no modes, the Kalman filter's ancestors):
+        # map the others, and make those as zeros of their batched shape.
+        count = jax.tree.leaves(p_local)[0].shape[0]
+        shapes = jax.eval_shape(info_of, jax.tree.map(lambda x: x[0], p_local))
+        specs, tree = jax.tree.flatten(shapes)
+        empty = [spec.size == 0 for spec in specs]
+
+        def nonempty(p):
+            return [x for x, e in zip(jax.tree.leaves(info_of(p)), empty, strict=True) if not e]
+
+        mapped = iter(lax.map(nonempty, p_local, batch_size=chunk))
+        leaves = [jnp.zeros((count, *spec.shape), spec.dtype) if e else next(mapped)
+                  for spec, e in zip(specs, empty, strict=True)]
+        return jax.tree.unflatten(tree, leaves)
 
     # check_vma=False: the filter mixes per-set (varying) and shared values in lax.cond branches.
     return jax.shard_map(local, mesh=mesh, in_specs=P("batch"), out_specs=P("batch"), check_vma=False)(params)

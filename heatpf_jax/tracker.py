@@ -157,8 +157,10 @@ class Tracker:
     Args:
         key: PRNG key (split as :func:`heatpf_jax.run` splits it).
         model: a model with ``init``/``step`` (a :class:`~heatpf_jax.filter.Filter`, a
-            :class:`~heatpf_jax.baselines.KalmanFilter`, ...); ``None``: :func:`~heatpf_jax.heatmap_filter`.
-        params: the model's params; ``None``: ``model.default_params()``.
+            :class:`~heatpf_jax.baselines.KalmanFilter`, ...); ``None``: the ``heatmap`` method
+            (``hp.build("heatmap")``).
+        params: the model's params; ``None``: the ``heatmap`` method's params when ``model`` is ``None``,
+            else ``model.default_params()``.
         heatmap_shape: ``(H, W)``, rows and columns of every heat map (a 200 x 150 map is ``(150, 200)``).
         intrinsics: ``(fx, fy, cx, cy)`` in heat-map pixels.
         plane_height: the ball radius, metres (``>= 0``).
@@ -185,13 +187,14 @@ class Tracker:
         if not _is_key(key):
             raise ValueError(f"key: expected a PRNG key (jax.random.key(seed)), got {type(key).__name__} "
                              f"{getattr(key, 'dtype', '')}{list(np.shape(key))}")
+        method_params = None
         if model is None:
-            from heatpf_jax.presets import heatmap_filter
+            from heatpf_jax.presets import build
 
-            model = heatmap_filter()
+            model, method_params = build("heatmap")
         _check_model(model)
         if params is None:
-            params = model.default_params()
+            params = model.default_params() if method_params is None else method_params
         _check_params(params, model)
         shape = tuple(heatmap_shape) if isinstance(heatmap_shape, tuple | list) else None
         if shape is None or len(shape) != 2 or not all(_positive_int(s) for s in shape):

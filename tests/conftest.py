@@ -17,7 +17,7 @@ from heatpf_jax.sim import simulate_standard  # noqa: E402
 
 # One small filter shared by the filter-level tests, so `run` compiles once per shape.
 SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8)
-SMALL_FILTER = hp.heatmap_filter(SMALL_OPTIONS)
+SMALL_FILTER = hp.paper_filter(SMALL_OPTIONS)
 
 
 @pytest.fixture(scope="session")

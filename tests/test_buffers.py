@@ -22,7 +22,12 @@ def _inputs(odometry, has_heatmap):
 
 def _buffer(xy, weight):
     xy = jnp.asarray(xy, jnp.float32)
-    return hp.Measurements(xy=xy, weight=jnp.asarray(weight, jnp.float32), valid=jnp.ones(len(xy), bool))
+    return hp.Measurements(
+        xy=xy,
+        weight=jnp.asarray(weight, jnp.float32),
+        valid=jnp.ones(len(xy), bool),
+        footprint=jnp.zeros((len(xy), 2, 2), jnp.float32),
+    )
 
 
 def test_aging_buffer_moves_then_ages(rng):

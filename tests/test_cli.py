@@ -132,7 +132,7 @@ def test_k_above_the_default_bound_raises_k_max_unless_given():
     # An explicit k_max stays, and the out-of-range k is then refused, naming the field.
     options, settings = parse_settings([f"k={default + 2}", "k_max=4"])
     assert options.k_max == 4
-    model = hp.heatmap_filter(options)
+    model = hp.paper_filter(options)
     params = set_by_name(model.default_params(), model.properties(), settings)
     with pytest.raises(ValueError, match=r"^observation\.k: "):
         hp.validate_params(params, model)
@@ -146,16 +146,16 @@ def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys, monkeypatch):
     import heatpf_jax.sim
 
     simulated = []
-    simulate = heatpf_jax.sim.simulate
-    monkeypatch.setattr(heatpf_jax.sim, "simulate", lambda name, seed, **kw: simulated.append(seed) or simulate(
-        name, seed, **kw))
+    simulate = heatpf_jax.sim.simulate_with_info
+    monkeypatch.setattr(heatpf_jax.sim, "simulate_with_info",
+                        lambda name, seed, **kw: simulated.append(seed) or simulate(name, seed, **kw))
     small = ["--set", "num_particles=64", "--set", "max_measurements=64", "--set", "k_max=4"]
     plots = tmp_path / "plots"
     assert main(["eval", "--scenario", "split", "--seeds", "3:5", "--steps", "25", "--plot", str(plots), *small]) == 0
     assert simulated == [3, 4]  # --seeds START:STOP, as the README uses it
     out = capsys.readouterr().out
     assert "scenario split: 2 sequence(s) x 25 steps, errors after step 10" in out
-    for method in ("heatmap", "conventional", "kalman", "bitbots2018", "no aging"):
+    for method in ("heatmap", "conventional", "kalman", "bitbots2018", "paper", "extended", "no aging"):
         assert method in out
     conventional = next(line for line in out.splitlines() if line.startswith("conventional"))
     assert conventional.split()[4] == "1.000"  # its ratio to itself
@@ -166,8 +166,11 @@ def test_eval_prints_table_i_and_writes_figures(tmp_path, capsys, monkeypatch):
 def test_eval_on_a_recording_and_its_errors(tmp_path, seq_file, capsys):
     path, seq = seq_file
     small = ["--set", "num_particles=128", "--set", "max_measurements=128", "--set", "k_max=8"]
-    assert main(["eval", "--input", str(path), *small]) == 0
-    assert f"scenario {path.stem}: 1 sequence(s) x {seq.num_steps} steps" in capsys.readouterr().out
+    assert main(["eval", "--input", str(path), "--method", "paper", "--method", "kalman", *small]) == 0
+    out = capsys.readouterr().out
+    assert f"scenario {path.stem}: 1 sequence(s) x {seq.num_steps} steps" in out
+    shown = [line.split()[0] for line in out.splitlines()[2:] if line.strip()]
+    assert shown == ["kalman", "paper", "paper,", "paper,"]  # --method picks methods (paper with its ablations)
     nogt = tmp_path / "nogt.npz"
     hp.save_sequence(nogt, seq._replace(ground_truth=None))
     assert main(["eval", "--input", str(nogt)]) == 2
@@ -180,6 +183,7 @@ def test_eval_checks_its_options_before_any_work(tmp_path, seq_file, capsys, mon
     import heatpf_jax.sim
 
     monkeypatch.setattr(heatpf_jax.sim, "simulate", _must_not_run)
+    monkeypatch.setattr(heatpf_jax.sim, "simulate_with_info", _must_not_run)
     path, _ = seq_file
     for argv, start in [
         (["eval", "--input", str(path), "--seeds", "3"], "--seeds: applies to the simulated scenarios"),
@@ -242,6 +246,7 @@ def test_existing_outputs_are_replaced_only_with_force(tmp_path, seq_file, capsy
     out = tmp_path / "keep.csv"
     out.write_text("precious\n")
     monkeypatch.setattr(heatpf_jax.sim, "simulate", _must_not_run)
+    monkeypatch.setattr(heatpf_jax.sim, "simulate_with_info", _must_not_run)
     for argv in (["run", str(path), "-o", str(out), *SMALL_ARGS], ["demo", "--steps", "12", "-o", str(out)]):
         assert main(argv) == 2
         assert _one_error_line(capsys) == (
@@ -308,6 +313,7 @@ def test_burn_in_must_leave_steps_and_nothing_is_silently_ignored(tmp_path, seq_
 
     monkeypatch.setattr(heatpf_jax.rollout, "run", _must_not_run)
     monkeypatch.setattr(heatpf_jax.sim, "simulate", _must_not_run)
+    monkeypatch.setattr(heatpf_jax.sim, "simulate_with_info", _must_not_run)
     path, seq = seq_file
     out = str(tmp_path / "x.csv")
     cases = [
@@ -378,3 +384,28 @@ def test_ctrl_c_exits_130_in_one_line_and_writes_nothing(tmp_path, seq_file, cap
     assert main(["run", str(seq_file[0]), "-o", str(out)]) == 130
     assert _one_error_line(capsys) == "heatpf: interrupted"
     assert not out.exists()
+
+
+def test_run_writes_modes_csv_equal_to_the_runs_modes(tmp_path, seq_file, capsys):
+    from heatpf_jax.cli import MODES_HEADER
+
+    path, seq = seq_file
+    out, modes = tmp_path / "est.csv", tmp_path / "modes.csv"
+    assert main(["run", str(path), "-o", str(out), "--modes", str(out), "--method", "paper", *SMALL_ARGS]) == 2
+    assert "--modes" in capsys.readouterr().err and not out.exists()  # one file cannot be both
+    assert main(["run", str(path), "-o", str(out), "--modes", str(modes), "--method", "paper", *SMALL_ARGS]) == 0
+    lines = modes.read_text().splitlines()
+    assert lines[0] == MODES_HEADER
+    table = np.loadtxt(modes, delimiter=",", skiprows=1, ndmin=2)
+    options = SMALL_OPTIONS._replace(modes="meanshift")
+    model, params = hp.build("paper", options)
+    ref = hp.run(jax.random.key(0), seq, params, model).info.modes
+    valid = np.asarray(ref.valid)
+    assert table.shape == (int(valid.sum()), 8)
+    t, j = table[:, 0].astype(int), table[:, 1].astype(int)
+    assert np.all(valid[t, j])
+    np.testing.assert_allclose(table[:, 2], np.asarray(ref.weight)[t, j], atol=2e-6)
+    np.testing.assert_allclose(table[:, 3:5], np.asarray(ref.mean)[t, j], atol=2e-6)
+    cov = np.asarray(ref.cov)[t, j]
+    np.testing.assert_allclose(table[:, 5:], np.stack([cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]], 1), atol=2e-6)
+    np.testing.assert_allclose(np.bincount(t, table[:, 2]), 1.0, atol=1e-4)  # weights sum to 1 per step

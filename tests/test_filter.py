@@ -61,7 +61,7 @@ KF_STEPS = 40
 KF_Q = 0.2  # random-walk (diffusion) std per step
 KF_R = 0.3  # measurement std
 KF_RUNS = 32
-KF_MODEL = hp.heatmap_filter(
+KF_MODEL = hp.paper_filter(
     hp.FilterOptions(
         num_particles=1000, max_measurements=16, k_max=1, observation="gaussian", spawn_box=(-4.0, 4.0, -4.0, 4.0)
     )
@@ -388,7 +388,7 @@ def test_gradients_are_finite_with_odometry(small_sequence, small_filter):
     ids=["systematic", "stratified", "multinomial", "residual", "spawn-gaussian"],
 )
 def test_every_resampler_and_spawn_runs(change, small_sequence):
-    model = hp.heatmap_filter(SMALL_OPTIONS._replace(**change))
+    model = hp.paper_filter(SMALL_OPTIONS._replace(**change))
     res = hp.run(jax.random.key(1), small_sequence, model.default_params(), model)
     for leaf in _leaves(res):
         if leaf.dtype.kind == "f":
@@ -417,7 +417,7 @@ def test_every_resampler_and_spawn_runs(change, small_sequence):
     ],
 )
 def test_invalid_params_raise_naming_the_field(field, value, observation, small_sequence, small_filter, monkeypatch):
-    model = small_filter if observation == SMALL_OPTIONS.observation else hp.heatmap_filter(
+    model = small_filter if observation == SMALL_OPTIONS.observation else hp.paper_filter(
         SMALL_OPTIONS._replace(observation=observation)
     )
     assert model.observation.k_max == 8
@@ -473,7 +473,7 @@ def test_invalid_config_raises_naming_the_field(field, change, model, small_sequ
     with pytest.raises(ValueError, match=rf"^{field}:"):
         validate_options(options)
     with pytest.raises(ValueError, match=rf"^{field}:"):
-        hp.heatmap_filter(options)
+        hp.paper_filter(options)
     if model is None:
         return
     # A model built directly with the bad value: run() refuses it before anything is compiled.

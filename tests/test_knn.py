@@ -78,7 +78,7 @@ def random_buffer(rng, m=M_RANDOM, n_valid=None, extent=3.0):
     valid[rng.choice(m - 20, n_valid, replace=False) if n_valid <= m - 20 else np.arange(n_valid)] = True
     # Garbage in invalid slots (large weights, inside the cloud), as a buffer that aged would hold.
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid))
+    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(xy), 2, 2)))
 
 
 def heatmap(rng, shape=(37, 50), blobs=((25.0, 24.0, 9.0), (10.0, 30.0, 4.0))):
@@ -123,7 +123,7 @@ def shuffled_buffer(rng, m, valid_fraction, extent=3.0):
     weight = rng.uniform(0.05, 1.0, m).astype(np.float32)
     valid = rng.uniform(size=m) < valid_fraction
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid))
+    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(xy), 2, 2)))
 
 
 def uniform_particles(rng, meas, n=N_PART, far=0):
@@ -237,7 +237,7 @@ def test_projected_heat_map_layout(threshold):
         check_against_references(parts, meas, k, _blocked(parts, meas, jnp.int32(k)))
     # The same buffer with a third of its slots invalidated at random: scattered valid slots.
     keep = np.asarray(meas.valid) & (rng.uniform(size=M_RASTER) > 0.33)
-    holes = hp.Measurements(meas.xy, jnp.where(jnp.asarray(keep), meas.weight, 7.0), jnp.asarray(keep))
+    holes = meas._replace(weight=jnp.where(jnp.asarray(keep), meas.weight, 7.0), valid=jnp.asarray(keep))
     for k in (1, K_MAX):
         check_against_references(parts, holes, k, _blocked(parts, holes, jnp.int32(k)))
 
@@ -301,7 +301,9 @@ def test_distance_ties_give_a_valid_neighbour_set(shuffle):
     if shuffle:
         order = rng.permutation(M_RANDOM)
         xy, valid = xy[order], valid[order]
-    meas = hp.Measurements(jnp.asarray(xy), jnp.ones(M_RANDOM, jnp.float32), jnp.asarray(valid))
+    meas = hp.Measurements(
+        jnp.asarray(xy), jnp.ones(M_RANDOM, jnp.float32), jnp.asarray(valid), jnp.zeros((M_RANDOM, 2, 2))
+    )
     parts = np.concatenate([rng.integers(0, 15, (80, 2)), rng.integers(0, 14, (80, 2)) + 0.5]).astype(np.float32)
     parts = jnp.asarray(parts)
     for k in range(1, K_MAX + 1):
@@ -378,8 +380,8 @@ def test_grad_matches_plain_formulation(layout):
 
 def test_filter_gives_the_same_run_with_blocked_and_dense_search(small_sequence):
     key = jax.random.key(9)
-    dense_filter = hp.heatmap_filter(SMALL_OPTIONS._replace(knn="dense"))
-    blocked_filter = hp.heatmap_filter(SMALL_OPTIONS._replace(knn="blocked"))
+    dense_filter = hp.paper_filter(SMALL_OPTIONS._replace(knn="dense"))
+    blocked_filter = hp.paper_filter(SMALL_OPTIONS._replace(knn="blocked"))
     params = dense_filter.make_params(k=4)
     dense = hp.run(key, small_sequence, params, dense_filter)
     blocked = hp.run(key, small_sequence, params, blocked_filter)

@@ -262,7 +262,10 @@ def make_buffer(weights, valid, xy=None):
     if xy is None:
         xy = np.random.default_rng(41).uniform(-2, 2, (n, 2))
     return hp.Measurements(
-        jnp.asarray(xy, jnp.float32), jnp.asarray(weights, jnp.float32), jnp.asarray(valid, bool)
+        jnp.asarray(xy, jnp.float32),
+        jnp.asarray(weights, jnp.float32),
+        jnp.asarray(valid, bool),
+        jnp.zeros((n, 2, 2), jnp.float32),
     )
 
 

@@ -53,7 +53,7 @@ def test_process_noise_matches_the_kalman_baseline():
 
 
 def test_spawn_and_filter_run(small_sequence):
-    model = hp.heatmap_filter(hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8))
+    model = hp.paper_filter(hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8))
     model = model._replace(motion=ConstantVelocity())
     params = model.default_params()
     new = model.motion.spawn(jax.random.key(2), jnp.zeros((4000, 2)), params.motion)

@@ -33,7 +33,7 @@ _grad_pw = jax.jit(_grad_sum)
 
 def _grad_sum_weights(particles, meas, k):
     def total(w):
-        return jnp.sum(hp.particle_weights(particles, hp.Measurements(meas.xy, w, meas.valid), k, k_max=K_MAX))
+        return jnp.sum(hp.particle_weights(particles, meas._replace(weight=w), k, k_max=K_MAX))
 
     return jax.grad(total)(meas.weight)
 
@@ -101,7 +101,7 @@ def make_measurements(rng, m=N_MEAS, n_valid=None, extent=4.0):
     valid[rng.choice(m, n_valid, replace=False)] = True
     # Garbage in the invalid slots: large weights, positions in the same region (often nearest to a particle).
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid))
+    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
     return meas, xy, weight, valid
 
 
@@ -143,7 +143,7 @@ def test_particle_weights_garbage_in_invalid_slots_is_ignored():
     xy2, w2 = xy.copy(), w.copy()
     xy2[~valid] = rng.uniform(-1e3, 1e3, ((~valid).sum(), 2)).astype(np.float32)
     w2[~valid] = rng.uniform(-10.0, 10.0, (~valid).sum()).astype(np.float32)
-    meas2 = hp.Measurements(jnp.asarray(xy2), jnp.asarray(w2), jnp.asarray(valid))
+    meas2 = hp.Measurements(jnp.asarray(xy2), jnp.asarray(w2), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
     for k in (1, 5):
         a = np.asarray(_pw(jnp.asarray(parts), meas, jnp.int32(k)))
         b = np.asarray(_pw(jnp.asarray(parts), meas2, jnp.int32(k)))
@@ -278,7 +278,7 @@ def test_particle_weights_gradient_matches_analytic_and_finite_differences():
     valid = np.arange(N_MEAS) < 20
     perm = rng.permutation(N_MEAS)
     xy, w, valid = xy[perm], w[perm], valid[perm]
-    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(w), jnp.asarray(valid))
+    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(w), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
 
     # Particles away from ties and from the floor: nearest distance > 0.3, neighbour-rank gaps > 0.05.
     k = 3
@@ -332,7 +332,7 @@ def test_gaussian_particle_weights_match_brute_force():
     # k = 1 with one measurement is the Gaussian likelihood.
     one = np.zeros(N_MEAS, bool)
     one[17] = True
-    meas1 = hp.Measurements(meas.xy, meas.weight, jnp.asarray(one))
+    meas1 = meas._replace(valid=jnp.asarray(one))
     got = np.asarray(_gpw(jnp.asarray(parts), meas1, jnp.int32(1), std=jnp.float32(0.7)))
     d2 = ((parts.astype(np.float64) - xy[17].astype(np.float64)) ** 2).sum(1)
     np.testing.assert_allclose(got, w[17] * np.exp(-d2 / (2 * 0.49)), rtol=2e-5, atol=1e-30)
@@ -349,6 +349,7 @@ def test_observation_pieces_are_logs_of_the_weight_functions():
         xy=jnp.asarray(rng.normal(size=(12, 2)), jnp.float32),
         weight=jnp.asarray(rng.random(12), jnp.float32),
         valid=jnp.asarray(rng.random(12) < 0.8),
+        footprint=jnp.zeros((12, 2, 2), jnp.float32),
     )
     inv = hp.InverseDistance(k_max=4, knn="dense")
     ll = np.asarray(inv.log_likelihood(particles, buf, hp.InverseDistanceParams(k=3, min_distance=0.05)), np.float64)
@@ -407,7 +408,9 @@ def test_default_method_is_the_exact_blocked_search_and_equals_dense():
     default, dense = _all_three(None), _all_three("dense")
     perm = rng.permutation(xy.shape[0])
     for order in (np.arange(xy.shape[0]), perm):  # raster order, then random order
-        meas = hp.Measurements(jnp.asarray(xy[order]), jnp.asarray(weight[order]), jnp.asarray(valid[order]))
+        meas = hp.Measurements(
+            jnp.asarray(xy[order]), jnp.asarray(weight[order]), jnp.asarray(valid[order]), jnp.zeros((len(order), 2, 2))
+        )
         # Float32 squared distances to the valid measurements, sorted: ties at the k-th are the only freedom.
         p = np.asarray(particles)
         d2 = np.sort(((p[:, None, :] - xy[valid][None]) ** 2).sum(-1, dtype=np.float32), axis=1)

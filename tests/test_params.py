@@ -71,7 +71,7 @@ def test_boundary_values_stay_finite_in_unconstrained_space():
 
 
 def test_names_resolution_and_set_by_name():
-    model = hp.heatmap_filter()
+    model = hp.paper_filter()
     names = P.leaf_names(model.properties())
     assert "motion.diffusion_std" in names and "observation.k" in names
     assert "injectors.explorers.explorer_fraction" in names
@@ -93,7 +93,7 @@ def test_names_resolution_and_set_by_name():
 
 
 def test_properties_mark_discrete_parameters_frozen():
-    model = hp.heatmap_filter(hp.FilterOptions(k_max=6))
+    model = hp.paper_filter(hp.FilterOptions(k_max=6))
     props = model.properties()
     assert props.observation.k == P.integer(1, 6)
     leaves = jax.tree.leaves(props, is_leaf=lambda x: isinstance(x, P.Param))
@@ -103,7 +103,7 @@ def test_properties_mark_discrete_parameters_frozen():
 
 
 def test_partition_combine_and_unconstrained_tree():
-    model = hp.heatmap_filter()
+    model = hp.paper_filter()
     props = model.properties()
     params = P.as_arrays(model.make_params(k=4, diffusion_std=0.3), props)
     assert params.observation.k.dtype == jnp.int32 and params.motion.diffusion_std.dtype == jnp.float32
@@ -120,7 +120,7 @@ def test_partition_combine_and_unconstrained_tree():
 
 
 def test_validate_names_the_dotted_path():
-    model = hp.heatmap_filter(hp.FilterOptions(k_max=8))
+    model = hp.paper_filter(hp.FilterOptions(k_max=8))
     with pytest.raises(ValueError, match=r"^observation.k: must be an integer in \[1, 8\], got 9"):
         hp.validate_params(model.make_params(k=9), model)
     with pytest.raises(ValueError, match=r"^injectors.explorers.explorer_fraction:"):

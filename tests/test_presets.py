@@ -20,10 +20,34 @@ def test_every_method_builds_and_validates():
 
 
 def test_conventional_is_the_particle_filter_with_the_cluster_source():
-    heat, conv = hp.build("heatmap").model, hp.build("conventional").model
+    heat, conv = hp.build("paper").model, hp.build("conventional").model
     assert isinstance(conv.source, hp.ClusterCentreSource) and isinstance(heat.source, hp.PixelSource)
     assert conv._replace(source=heat.source) == heat  # every other piece is the same
-    assert hash(hp.heatmap_filter()) == hash(hp.heatmap_filter())  # equal filters share a compilation
+    assert hash(hp.paper_filter()) == hash(hp.paper_filter())  # equal filters share a compilation
+
+
+def test_paper_heatmap_and_extended_are_what_their_names_say():
+    paper, heat, ext = (hp.build(name) for name in ("paper", "heatmap", "extended"))
+    # paper: the 2019 filter as the default Filter of pieces (static position, eq. 1, plain resampling).
+    assert paper.model == hp.Filter() and paper.params == hp.Filter().default_params()
+    # heatmap: the same pipeline with a velocity state and the range-aware observation.
+    assert isinstance(heat.model.motion, hp.ConstantVelocity)
+    assert isinstance(heat.model.observation, hp.FootprintTemplate)
+    assert [type(i) for i in heat.model.injectors] == [hp.UniformExplorers, hp.MeasurementExplorers]
+    assert heat.model._replace(
+        motion=paper.model.motion, observation=paper.model.observation, injectors=paper.model.injectors
+    ) == paper.model
+    assert heat.params.observation.k == 10
+    gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
+    assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05
+    # extended: mass inertia, cluster-wise resampling, random and measurement particles, dominant mode.
+    assert isinstance(ext.model.motion, hp.MassInertia) and isinstance(ext.model.resampling, hp.ClusterResampling)
+    assert [type(i) for i in ext.model.injectors] == [hp.UniformExplorers, hp.RandomParticles, hp.MeasurementExplorers]
+    assert not ext.model.resampling.correct and ext.params.resampling.bandwidth == 0.1
+    assert isinstance(ext.model.estimator, hp.DominantMode)
+    # The observation option still applies to every particle filter.
+    forced = hp.build("heatmap", hp.FilterOptions(observation="inverse_distance")).model
+    assert isinstance(forced.observation, hp.InverseDistance)
 
 
 def test_bitbots2018_settings():
@@ -54,7 +78,12 @@ def test_bitbots2018_weight_floor_and_no_odometry(small_sequence):
     # Floor: every particle keeps a weight of at least 0.001 / (sum of weights) on heat-map steps.
     lik = model.observation.log_likelihood(
         np.array([[50.0, 50.0]], np.float32),
-        hp.Measurements(xy=np.zeros((1, 2), np.float32), weight=np.ones(1, np.float32), valid=np.ones(1, bool)),
+        hp.Measurements(
+            xy=np.zeros((1, 2), np.float32),
+            weight=np.ones(1, np.float32),
+            valid=np.ones(1, bool),
+            footprint=np.zeros((1, 2, 2), np.float32),
+        ),
         params.observation,
     )
     assert float(lik[0]) == pytest.approx(np.log(1 / np.hypot(50, 50)) if 1 / np.hypot(50, 50) > 0.001
@@ -67,4 +96,4 @@ def test_options_validation_names_the_field():
                           ({"k_max": 1.5}, "k_max"), ({"spawn_box": (1.0, 0.0, -1.0, 1.0)}, "spawn_box"),
                           ({"knn": "kdtree"}, "knn")]:
         with pytest.raises(ValueError, match=rf"^{field}:"):
-            hp.heatmap_filter(hp.FilterOptions(**change))
+            hp.paper_filter(hp.FilterOptions(**change))

@@ -95,7 +95,7 @@ def test_noop_injector_equals_no_explorers(small_sequence):
 
 def test_step_log_likelihood_and_ancestors_against_numpy(small_sequence):
     """Without motion noise the step's particles are the previous ones: log Z and ancestors by hand."""
-    model = hp.heatmap_filter(hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8,
+    model = hp.paper_filter(hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8,
                                                observation="gaussian", knn="dense"))
     params = P.as_arrays(
         model.make_params(k=2, obs_std=0.3, diffusion_std=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0,

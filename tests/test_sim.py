@@ -85,7 +85,10 @@ def _components(heat: np.ndarray, threshold: float, min_size: int = 1) -> list[t
 
 
 def test_public_names_and_signatures():
-    assert SCENARIOS == ("standard", "false_positives", "split", "far", "occlusion", "walking", "sparse_rate")
+    assert SCENARIOS == (
+        "standard", "false_positives", "split", "far", "occlusion", "walking", "sparse_rate", "two_balls", "shot",
+        "turning",
+    )
     for name in sim.__all__:
         assert hasattr(sim, name), name
     params = inspect.signature(simulate_standard).parameters
@@ -207,9 +210,9 @@ def test_world_consistency_and_speed(scenario):
     truth = np.stack([_to_base(pose[t], ball[t]) for t in range(seq.num_steps)])
     np.testing.assert_allclose(seq.ground_truth, truth, atol=1e-9)
     speed = np.linalg.norm(np.diff(ball, axis=0), axis=1) / DT
-    assert speed.max() <= 3.0 + 1e-9 and speed.mean() > 0.05
+    assert speed.max() <= (8.0 if scenario == "shot" else 3.0) + 1e-9 and speed.mean() > 0.05
     np.testing.assert_array_equal(seq.odometry[0], 0.0)
-    if scenario != "walking":  # a static robot: odometry zero, base = world, camera fixed and known exactly
+    if scenario not in ("walking", "turning"):  # a static robot: odometry zero, base = world, exact camera
         np.testing.assert_array_equal(seq.odometry, 0.0)
         np.testing.assert_allclose(seq.ground_truth, ball)
         np.testing.assert_array_equal(seq.cam_to_base, info["true_cam_to_base"])
@@ -220,7 +223,7 @@ def test_world_consistency_and_speed(scenario):
     pitch = np.degrees(np.arcsin(-optical_axis[:, 2]))
     assert np.all((cam[:, 2, 3] > 0.4) & (cam[:, 2, 3] < 0.7)) and np.all((pitch > 24) & (pitch < 36))
     # The ball is in view where the scenario does not hide it (the standard path leaves the image edge briefly).
-    assert info["in_view"].mean() > 0.85
+    assert info["in_view"].mean() > (0.5 if scenario == "turning" else 0.85)
 
 
 def test_standard_like_scenarios_share_the_standard_world():

@@ -21,6 +21,7 @@ SMALL_ARGS = [
     "--set", f"num_particles={SMALL_OPTIONS.num_particles}",
     "--set", f"max_measurements={SMALL_OPTIONS.max_measurements}",
     "--set", f"k_max={SMALL_OPTIONS.k_max}",
+    "--method", "paper",  # SMALL_FILTER's method, so that runs share its compilation
 ]
 
 
@@ -88,7 +89,7 @@ def test_peak_memory_grows_with_chunk_not_batch(small_sequence, small_filter):
 def test_batch_axis_errors():
     with pytest.raises(ValueError, match="params_batch"):
         batch_size_of(SMALL_FILTER.default_params())
-    model = hp.heatmap_filter(hp.FilterOptions(k_max=8))
+    model = hp.paper_filter(hp.FilterOptions(k_max=8))
     with pytest.raises(ValueError, match=r"^observation\.k: "):
         bad = hp.stack_params([model.make_params(k=1), model.make_params(k=99)])
         sweep(jax.random.key(0), None, bad, model)
@@ -294,7 +295,7 @@ def test_cli_sweep_never_resumes_another_question_on_a_file(tmp_path, small_sequ
     assert main(["sweep", str(moved), *base[2:]]) == 0
     assert calls == [2] and out.read_bytes() == full
     # --set with a parameter's default value asks the same question.
-    assert main([*base, "--set", f"diffusion_std={hp.build('heatmap')[1].motion.diffusion_std}"]) == 0
+    assert main([*base, "--set", f"diffusion_std={hp.build('paper')[1].motion.diffusion_std}"]) == 0
     assert calls == [2] and out.read_bytes() == full
     # A file that holds no record is never taken over.
     notes = tmp_path / "notes.csv"

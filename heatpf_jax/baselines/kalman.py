@@ -31,6 +31,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 from heatpf_jax.filter import StepInfo
 from heatpf_jax.injection import UniformBox
 from heatpf_jax.measurements import empty_measurements
+from heatpf_jax.modes import Modes
 from heatpf_jax.params import make_params, nonnegative, positive
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sources import ClusterCentreSource, SourceParams
@@ -206,7 +207,8 @@ class KalmanFilter(NamedTuple):
         """Odometry, prediction, update with the cluster measurement. ``key`` is ignored.
 
         Its :class:`~heatpf_jax.filter.StepInfo` has ``ess = 0``, ``resampled = False``, no
-        ancestors (shape ``[0]``) and the predictive log-likelihood of the measurement.
+        ancestors (shape ``[0]``), the predictive log-likelihood of the measurement, and its
+        Gaussian as the one mode.
         """
         del key
         m = params.motion
@@ -230,5 +232,11 @@ class KalmanFilter(NamedTuple):
             resampled=jnp.zeros((), bool),
             log_likelihood=log_likelihood,
             ancestors=jnp.zeros((0,), jnp.int32),
+            modes=Modes(
+                weight=jnp.ones((1,), jnp.float32),
+                mean=state.mean[None, :2],
+                cov=state.cov[None, :2, :2],
+                valid=jnp.ones((1,), bool),
+            ),
         )
         return state, info

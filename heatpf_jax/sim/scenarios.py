@@ -6,9 +6,12 @@ evaluation). Every scenario is a deterministic function of ``(scenario, seed, nu
 
 The world frame is the robot's base frame at step 0. A humanoid's head camera (0.45-0.7 m high,
 pitched down 25-35 degrees) sees a 200 x 150 heat map (``shrink`` divides it); the ball (radius
-0.075 m) rolls on smooth random paths at up to 3 m/s. ``standard``, ``false_positives``,
-``occlusion`` and ``sparse_rate`` share the standard world of a seed (camera 0.6 m, 30 degrees, the
-same ball path and activation noise), so their differences are the scenario's effect alone.
+0.075 m) rolls on smooth random paths at up to 3 m/s (kicked at 5-8 m/s in ``shot``). ``standard``,
+``false_positives``, ``occlusion``, ``sparse_rate`` and ``two_balls`` share the standard world of a seed
+(camera 0.6 m, 30 degrees, the same ball path and activation noise), so their differences are the
+scenario's effect alone.
+``two_balls`` adds a second ball; ``shot`` and ``turning`` follow Olufs et al.'s test tours B (a ball
+shot at a goal) and C (a robot turning in place).
 """
 
 from __future__ import annotations
@@ -26,10 +29,13 @@ from heatpf_jax.sim.world import (
     bursty_mask,
     fits_in_view,
     lateral_limit,
+    meet_apart_path,
     odometry_from_poses,
     random_windows,
+    shot_path,
     slow_down,
     smooth_signal,
+    turn_poses,
     view_path,
     walk_poses,
     world_to_base,
@@ -37,7 +43,19 @@ from heatpf_jax.sim.world import (
 
 __all__ = ["SCENARIOS", "simulate", "simulate_standard", "simulate_with_info"]
 
-SCENARIOS = ("standard", "false_positives", "split", "far", "occlusion", "walking", "sparse_rate")
+# New scenarios go at the end: each scenario's random streams are seeded with its index here.
+SCENARIOS = (
+    "standard",
+    "false_positives",
+    "split",
+    "far",
+    "occlusion",
+    "walking",
+    "sparse_rate",
+    "two_balls",
+    "shot",
+    "turning",
+)
 
 DEFAULT_NUM_STEPS = 300
 MAX_BALL_SPEED = 3.0  # m/s, in the world frame
@@ -66,6 +84,8 @@ class _Plan:
     split_on: np.ndarray | None = None  # [T] bool, where the stripe is drawn
     dropout: float = 0.0  # share of the ball blob's pixels dropped (far scenario)
     noise: float = NOISE
+    extra_balls_world: np.ndarray | None = None  # [T, K, 2]: more balls like the tracked one, never occluded
+    extra_info: dict[str, Any] = field(default_factory=dict)  # scenario-specific entries of the info dict
 
 
 # --- Helpers ------------------------------------------------------------------------------------------------------
@@ -239,6 +259,89 @@ def _sparse_rate(seed, num_steps, dt, intrinsics, shape) -> _Plan:
     return plan
 
 
+def _meeting_steps(a, b, dt, count, intrinsics, cam, shape) -> np.ndarray:
+    """One step in the middle 60 % of each of ``count`` equal parts of the run for paths ``a`` and ``b`` to meet.
+
+    Where ``a`` is well in view and the balls pass each other at 0.8 m/s or more, the step where they are
+    closest already (the least bending: a quick crossing, not one ball following the other).
+    """
+    num_steps = a.shape[0]
+    bounds = np.linspace(0.0, num_steps, count + 1)
+    rel_speed = np.linalg.norm(np.gradient(b - a, axis=0), axis=1) / dt if num_steps > 1 else np.zeros(1)
+    gap = np.linalg.norm(b - a, axis=1)
+    steps = []
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        cand = np.arange(int(np.ceil(lo + 0.2 * (hi - lo))), int(np.floor(lo + 0.8 * (hi - lo))) + 1)
+        cand = cand[cand < num_steps]
+        good = [
+            t
+            for t in cand
+            if rel_speed[t] >= 0.8 and fits_in_view(a[t], intrinsics, cam, shape, radius=BALL_RADIUS, margin_px=10.0)
+        ]
+        pool = np.array(good or list(cand) or [min(int(lo), num_steps - 1)])
+        steps.append(int(pool[np.argmin(gap[pool])]))
+    return np.unique(steps)
+
+
+def _two_balls(seed, num_steps, dt, intrinsics, shape) -> _Plan:
+    world, fx = _scenario_rngs(seed, "two_balls", 2)
+    plan = _standard_plan(seed, num_steps, dt, fx)  # ball A: the standard world of the seed
+    cam = plan.true_cam[0]
+    full, full_shape = scaled_camera(1)  # planned in the full-size view: the same world at every shrink
+    a = plan.ball_world
+    b = view_path(
+        world, num_steps, dt, full, cam, full_shape, x_range=(1.0, 3.4), fill=0.8, radius=BALL_RADIUS, max_speed=1.6
+    )
+    # The balls meet (centres 0.18-0.26 m apart) about every 10 s: b is bent towards a around chosen steps, and
+    # away from a wherever they would overlap (centres closer than 0.16 m).
+    steps = _meeting_steps(a, b, dt, max(1, int(round(num_steps * dt / 10.0))), full, cam, full_shape)
+    b, steps = meet_apart_path(a, b, dt, steps, world.uniform(0.18, 0.26, len(steps)), min_distance=0.16)
+    plan.extra_balls_world = b[:, None, :]
+    plan.extra_info = {"meeting_steps": steps}
+    return plan
+
+
+def _shot(seed, num_steps, dt, intrinsics, shape) -> _Plan:
+    world, noise, fx = _scenario_rngs(seed, "shot", 3)
+    cam = camera_pose(height=world.uniform(0.55, 0.65), pitch=np.deg2rad(world.uniform(27.0, 30.0)))
+    start, goal_x = (world.uniform(1.6, 2.4), 0.0), world.uniform(5.0, 6.0)
+    num_shots = max(1, int(round(num_steps * dt / 10.0)))
+    path, speed, kicks = shot_path(world, num_steps, dt, start=start, goal_x=goal_x, num_shots=num_shots)
+    pose, cams = _static(cam, num_steps)
+    return _Plan(
+        ball_world=path,
+        robot_pose=pose,
+        true_cam=cams,
+        noise_rng=noise,
+        effects_rng=fx,
+        extra_info={"ball_speed": speed, "shot_steps": kicks, "goal_x": goal_x},
+    )
+
+
+def _turning(seed, num_steps, dt, intrinsics, shape) -> _Plan:
+    world, noise, fx = _scenario_rngs(seed, "turning", 3)
+    cam = camera_pose(height=world.uniform(0.55, 0.65), pitch=np.deg2rad(world.uniform(27.0, 33.0)))
+    poses, centre = turn_poses(world, num_steps, dt)
+    # A path like the standard one, ahead of the middle of the robot's swing.
+    path = ball_path(world, num_steps, dt, max_speed=MAX_BALL_SPEED)
+    c, s = np.cos(centre), np.sin(centre)
+    ball_world = path @ np.array([[c, s], [-s, c]])
+    # Odometry as in walking: 5-10 % multiplicative noise per component and step, plus a small additive part.
+    true_odom = odometry_from_poses(poses)
+    scale = fx.uniform(0.05, 0.1)
+    given_odom = true_odom * (1.0 + scale * fx.standard_normal(true_odom.shape))
+    given_odom += np.array([0.001, 0.001, 0.002]) * fx.standard_normal(true_odom.shape)
+    given_odom[0] = 0.0
+    return _Plan(
+        ball_world=ball_world,
+        robot_pose=poses,
+        true_cam=np.repeat(cam[None], num_steps, axis=0),
+        noise_rng=noise,
+        effects_rng=fx,
+        given_odometry=given_odom,
+    )
+
+
 _BUILDERS = {
     "standard": _standard,
     "false_positives": _false_positives,
@@ -247,6 +350,9 @@ _BUILDERS = {
     "occlusion": _occlusion,
     "walking": _walking,
     "sparse_rate": _sparse_rate,
+    "two_balls": _two_balls,
+    "shot": _shot,
+    "turning": _turning,
 }
 
 
@@ -260,6 +366,9 @@ def _render(plan: _Plan, num_steps: int, dt: float, intrinsics: np.ndarray, shap
     split_on = np.zeros(num_steps, bool) if plan.split_on is None else plan.split_on
     fp_peak = np.zeros((num_steps, 0)) if plan.fp_peak is None else plan.fp_peak
     truth = np.stack([world_to_base(plan.robot_pose[t], plan.ball_world[t]) for t in range(num_steps)])
+    extra_world = np.zeros((num_steps, 0, 2)) if plan.extra_balls_world is None else plan.extra_balls_world
+    extra = np.stack([world_to_base(plan.robot_pose[t], extra_world[t]) for t in range(num_steps)])
+    extra_in_view = np.zeros(extra.shape[:2], bool)
     h, w = shape
     heatmaps = np.zeros((num_steps, h, w), np.float32)
     in_view = np.zeros(num_steps, bool)
@@ -276,6 +385,11 @@ def _render(plan: _Plan, num_steps: int, dt: float, intrinsics: np.ndarray, shap
             angle, offset, width = plan.stripe[t]
             act = act * stripe_mask(shape, u0, v0, angle, offset * radius_px, max(width * radius_px, 1.5))
             split[t] = True
+        for k in range(extra.shape[1]):
+            other = np.array([extra[t, k, 0], extra[t, k, 1], BALL_RADIUS])
+            u, v, d = project_centre(other, intrinsics, cam)
+            extra_in_view[t, k] = d > 0.05 and 0.0 <= u <= w - 1 and 0.0 <= v <= h - 1
+            act = np.maximum(act, blob(other, BALL_RADIUS, intrinsics, cam, shape, peaks[t]))
         if plan.dropout > 0.0:
             act = act * (plan.effects_rng.uniform(size=shape) >= plan.dropout)
         if fp_peak.shape[1]:
@@ -316,6 +430,9 @@ def _render(plan: _Plan, num_steps: int, dt: float, intrinsics: np.ndarray, shap
         "false_positive_on": fp_rendered,
         "false_positive_peak": np.where(fp_rendered, fp_peak, 0.0),
         "false_positive_count": fp_rendered.sum(axis=1).astype(np.int64),
+        "balls_base": np.concatenate([truth[:, None], extra], axis=1),
+        "balls_visible": np.concatenate([(has & ball_on & in_view)[:, None], has[:, None] & extra_in_view], axis=1),
+        **{key: np.copy(value) for key, value in plan.extra_info.items()},
     }
     return validate_sequence(seq), info
 
@@ -366,7 +483,16 @@ def simulate_with_info(
         * ``split`` ``bool [T]``: an occluding stripe cuts the ball blob in two (``split``);
         * ``false_positive_world`` ``[K, 2]``, ``false_positive_radius`` ``[K]``: the spurious places;
         * ``false_positive_on`` ``bool [T, K]``, ``false_positive_peak`` ``[T, K]``: which are rendered, how
-          bright; ``false_positive_count`` ``int [T]``: how many are rendered in ``heatmaps[t]``.
+          bright; ``false_positive_count`` ``int [T]``: how many are rendered in ``heatmaps[t]``;
+        * ``balls_base`` ``[T, B, 2]``: every ball's centre in the base frame of step t, the tracked one
+          (``ground_truth``) first: ``B = 2`` in ``two_balls``, 1 elsewhere;
+        * ``balls_visible`` ``bool [T, B]``: which balls are rendered in ``heatmaps[t]`` (column 0 is
+          ``visible``; other balls are never occluded);
+
+        and in ``two_balls``: ``meeting_steps`` ``int [M]``, the steps where the balls were made to meet
+        (centres 0.18-0.26 m apart); in ``shot``: ``ball_speed`` ``[T]``, the ball's world speed
+        (m/s, just after the kick at a kick step), ``shot_steps`` ``int [K]``, the steps of the kicks, and
+        ``goal_x``, the x of the wall the ball bounces off.
 
     Raises:
         ValueError: an unknown ``scenario`` (the message lists the valid names) or a bad argument
@@ -396,7 +522,19 @@ def simulate(scenario: str, seed: int, *, num_steps: int | None = None, dt: floa
     * ``walking``: the robot walks (0.1-0.3 m/s) and turns (up to 0.2-0.5 rad/s); noisy odometry, a
       camera pose off by 1-2 degrees of pitch, head sway; the heat maps use the true camera pose.
     * ``sparse_rate``: standard, but heat maps arrive on about a third of the steps, after gaps of 1-6 steps.
+    * ``two_balls``: standard plus a second, identical ball (same size and activation) on its own smooth
+      path in view, bent so that the balls pass each other (centres 0.18-0.26 m apart) about every 10 s
+      and never overlap (centres at least 0.16 m apart). The ground truth is the standard ball.
+    * ``shot``: static robot; a ball dribbled to a start spot 1.6-2.4 m ahead is shot at 5-8 m/s, 3-10
+      degrees off straight ahead, towards a wall (a goal) 5-6 m ahead; it rolls with a deceleration of
+      0.5-1 m/s^2, bounces back (restitution 0.4-0.7), is trapped by a player and dribbled back at about
+      1 m/s; a shot about every 10 s (Olufs et al.'s tour B).
+    * ``turning``: the robot turns in place, left and right: its yaw swings +-0.5-0.7 rad with a period of
+      4-7 s, at up to 0.75-0.95 rad/s; the ball moves on a path like the standard one ahead of the
+      middle of the swing and is in view about 80 % of the time. Noisy odometry as in ``walking``; the
+      camera pose is exact (Olufs et al.'s tour C).
 
+    ``two_balls``, ``shot`` and ``turning`` make the same world (paths, poses) at every ``shrink``.
     See :func:`simulate_with_info` for the arguments.
     """
     return simulate_with_info(scenario, seed, num_steps=num_steps, dt=dt, shrink=shrink)[0]

@@ -20,10 +20,14 @@ __all__ = [
     "fits_in_view",
     "integrate_odometry",
     "lateral_limit",
+    "meet_apart_path",
+    "meet_path",
     "odometry_from_poses",
     "random_windows",
+    "shot_path",
     "slow_down",
     "smooth_signal",
+    "turn_poses",
     "view_path",
     "walk_poses",
     "world_to_base",
@@ -174,6 +178,215 @@ def view_path(
     return slow_down(np.stack([x, y], axis=-1), dt, max_speed)
 
 
+def meet_path(
+    path_a: np.ndarray,
+    path_b: np.ndarray,
+    dt: float,
+    steps: np.ndarray,
+    offsets: np.ndarray,
+    *,
+    max_added_speed: float = 1.3,
+    min_width: float = 0.5,
+) -> np.ndarray:
+    """Path ``b`` bent so that it passes ``path_a[steps[k]] + offsets[k]`` at step ``steps[k]``.
+
+    Each meeting adds a Gaussian bump in time, ``w_k(t) * shift_k``, to ``b``: at the meeting ``b`` keeps its
+    own velocity (the bump is flat there), so the balls cross rather than follow each other. The bump's
+    width (std, seconds) is ``max(min_width, 0.61 |shift_k| / max_added_speed)``, so one bump adds at most
+    ``max_added_speed`` to ``b``'s speed (the Gaussian's steepest slope is ``0.61 / std``). The shifts
+    solve the small linear system of all bumps, so the meetings are exact when bumps overlap.
+
+    Args:
+        path_a: ``[T, 2]`` the path met.
+        path_b: ``[T, 2]`` the path bent.
+        dt: step, seconds.
+        steps: ``int [K]`` meeting steps.
+        offsets: ``[K, 2]`` ``b - a`` at the meetings.
+
+    Returns:
+        ``float64 [T, 2]`` the bent path ``b``.
+    """
+    steps = np.asarray(steps, np.int64)
+    if steps.size == 0:
+        return path_b.copy()
+    t = np.arange(path_b.shape[0]) * dt
+    target = path_a[steps] + offsets
+    shift = target - path_b[steps]
+    width = np.maximum(min_width, 0.61 * np.linalg.norm(shift, axis=1) / max_added_speed)
+    for _ in range(3):  # the widths depend on the shifts: settle both
+        bumps = np.exp(-0.5 * ((t[:, None] - t[steps][None]) / width[None]) ** 2)  # [T, K]
+        shift = np.linalg.solve(bumps[steps], target - path_b[steps])
+        width = np.maximum(min_width, 0.61 * np.linalg.norm(shift, axis=1) / max_added_speed)
+    bumps = np.exp(-0.5 * ((t[:, None] - t[steps][None]) / width[None]) ** 2)
+    shift = np.linalg.solve(bumps[steps], target - path_b[steps])
+    return path_b + bumps @ shift
+
+
+def _across(path_a: np.ndarray, path_b: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Unit vectors across the relative motion of ``b`` and ``a`` at ``steps``, on the side where ``b`` is."""
+    rel = np.gradient(path_b, axis=0)[steps] - np.gradient(path_a, axis=0)[steps] if len(path_a) > 1 else None
+    if rel is None:
+        return np.tile([0.0, 1.0], (len(steps), 1))
+    across = np.stack([-rel[:, 1], rel[:, 0]], axis=-1)
+    across /= np.maximum(np.linalg.norm(across, axis=1), 1e-12)[:, None]
+    side = np.sign(np.einsum("kd,kd->k", path_b[steps] - path_a[steps], across))
+    return across * np.where(side == 0.0, 1.0, side)[:, None]
+
+
+def meet_apart_path(
+    path_a: np.ndarray,
+    path_b: np.ndarray,
+    dt: float,
+    steps: np.ndarray,
+    distances: np.ndarray,
+    *,
+    min_distance: float,
+    max_rounds: int = 20,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Path ``b`` bent (:func:`meet_path`) to pass ``distances[k]`` from ``a`` near ``steps[k]``, never closer
+    than ``min_distance`` (two balls cannot overlap).
+
+    The offsets lie across the relative motion (so a meeting is about the closest approach), on the side
+    where ``b`` already is. Then, round by round, each stretch where the bent paths come closer than
+    ``min_distance`` gets a constraint of its own at its closest step (``min_distance + 0.05`` apart); a
+    constraint within 0.3 s of an earlier one replaces it (a meeting keeps its distance). Stops when the
+    paths keep apart or after ``max_rounds``.
+
+    Returns:
+        ``(b, steps)``: ``float64 [T, 2]`` the bent path and ``int64 [K']`` the steps of the meetings as
+        finally placed (each meeting moved at most by the rounds that replaced it).
+    """
+    steps = np.asarray(steps, np.int64).copy()
+    dist = np.asarray(distances, np.float64).copy()
+    is_meeting = np.ones(len(steps), bool)
+    window = int(round(0.3 / dt))
+    b = meet_path(path_a, path_b, dt, steps, _across(path_a, path_b, steps) * dist[:, None])
+    for _ in range(max_rounds):
+        gap = np.linalg.norm(b - path_a, axis=1)
+        close = gap < min_distance
+        if not close.any():
+            break
+        edges = np.diff(np.r_[0, close.astype(int), 0])
+        for start, stop in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+            worst = start + int(np.argmin(gap[start:stop]))
+            near = np.flatnonzero(np.abs(steps - worst) <= window)
+            if near.size:
+                steps[near[0]] = worst
+                dist[near[0]] = max(dist[near[0]], min_distance + 0.05)
+            else:
+                steps, dist = np.r_[steps, worst], np.r_[dist, min_distance + 0.05]
+                is_meeting = np.r_[is_meeting, False]
+        keep = np.unique(steps, return_index=True)[1]
+        steps, dist, is_meeting = steps[keep], dist[keep], is_meeting[keep]
+        # Offsets from the current bent path: its relative motion is what the new bumps must cross.
+        b = meet_path(path_a, path_b, dt, steps, _across(path_a, b, steps) * dist[:, None])
+    return b, steps[is_meeting]
+
+
+def shot_path(
+    rng: np.random.Generator,
+    num_steps: int,
+    dt: float,
+    *,
+    start: tuple[float, float],
+    goal_x: float,
+    num_shots: int,
+    shot_speed=(5.0, 8.0),
+    friction=(0.5, 1.0),
+    restitution=(0.4, 0.7),
+    angle=(np.deg2rad(3.0), np.deg2rad(10.0)),
+    dribble_speed=(0.8, 1.2),
+    substeps: int = 50,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A ball shot at a wall (a goal) again and again: kick, roll, bounce, roll back, trap, dribble back.
+
+    The ball is first dribbled to a start spot near ``start``; it waits there 0.5-1.5 s and is kicked at
+    ``shot_speed`` (m/s, drawn per shot) in a direction ``angle`` (radians, drawn per shot, either side)
+    off the x axis. It rolls with a constant deceleration ``friction`` (m/s^2, drawn once), bounces off
+    the goal line ``x = goal_x`` (the x component of its velocity reversed and scaled by ``restitution``,
+    drawn per shot; the y component kept) and rolls back. A player traps it once it has rolled back to
+    1-2 m short of the start spot: a constant extra deceleration (at least 4 m/s^2) that stops it before it
+    passes the spot. After 0.3-0.8 s the player dribbles it to the next start spot at ``dribble_speed``
+    (m/s, accelerating and braking at 2 m/s^2), where it waits for the next kick. Kick ``k`` comes at
+    ``(k + 0.3) / num_shots`` of the run (+- 0.5 s) or, if the ball is not back by then, 0.5-1.5 s after
+    it is. The start spots lie on the side opposite to the kick's angle, so the bounce brings the ball back
+    across the middle. The motion is integrated with ``substeps`` per step (exact for a constant
+    deceleration).
+
+    Returns:
+        ``(positions, speeds, kick_steps)``: ``float64 [T, 2]`` ball centres, ``float64 [T]`` speeds (m/s,
+        just after a kick at a kick step) and ``int64 [K]`` the steps of the kicks within the run.
+    """
+    n = int(num_shots)
+    decel = rng.uniform(*friction)
+    speeds0 = rng.uniform(*shot_speed, n)
+    sides = rng.choice([-1.0, 1.0], n + 1)
+    angles = sides[:n] * rng.uniform(*angle, n)
+    bounce = rng.uniform(*restitution, n)
+    spots = np.stack(
+        [start[0] + rng.uniform(-0.15, 0.15, n + 1), start[1] - sides * rng.uniform(0.1, 0.4, n + 1)], axis=-1
+    )
+    trap_x = spots[:n, 0] + rng.uniform(1.0, 2.0, n)
+    waits = rng.uniform(0.5, 1.5, n)
+    pauses = rng.uniform(0.3, 0.8, n)
+    dribble = rng.uniform(*dribble_speed, n + 1)
+    jitter = rng.uniform(-0.5, 0.5, n)
+    first = spots[0] + np.array([-rng.uniform(0.5, 1.0), rng.uniform(-0.4, 0.4)])
+    scheduled = np.round(((np.arange(n) + 0.3) * num_steps * dt / n + jitter) / dt).astype(np.int64)
+
+    h = dt / substeps
+    accel = 2.0  # m/s^2, the dribbling player's
+    pos, vel = first.astype(np.float64), np.zeros(2)
+    phase, shot, target, kick_step, resume = "dribble", 0, spots[0], -1, 0.0
+    trap_decel = 0.0
+    positions, speeds, kicks = np.zeros((num_steps, 2)), np.zeros(num_steps), []
+    for i in range(num_steps):
+        if phase == "wait" and i == kick_step:
+            vel = speeds0[shot] * np.array([np.cos(angles[shot]), np.sin(angles[shot])])
+            phase, bounced = "roll", False
+            kicks.append(i)
+        positions[i], speeds[i] = pos, np.linalg.norm(vel)
+        for j in range(substeps):
+            now = (i * substeps + j) * h
+            if phase in ("roll", "trap"):
+                speed = np.linalg.norm(vel)
+                slow = decel + (trap_decel if phase == "trap" else 0.0)
+                new = max(speed - slow * h, 0.0)
+                # Exact for a constant deceleration, also when the ball stops inside the substep.
+                travel = (speed**2 - new**2) / (2.0 * slow)
+                pos = pos + vel / max(speed, 1e-12) * travel
+                vel = vel * (new / max(speed, 1e-12))
+                if not bounced and pos[0] > goal_x:
+                    pos[0] = 2.0 * goal_x - pos[0]
+                    vel[0] = -bounce[shot] * vel[0]
+                    bounced = True
+                elif phase == "roll" and bounced and pos[0] < trap_x[shot] and vel[0] < 0.0:
+                    speed = np.linalg.norm(vel)
+                    room = (pos[0] - spots[shot, 0]) * speed / -vel[0]
+                    trap_decel = max(4.0, speed**2 / (2.0 * max(room, 1e-3)) - decel)
+                    phase = "trap"
+                if new == 0.0:
+                    vel = np.zeros(2)
+                    shot += 1
+                    phase, resume, target = "pause", now + h + pauses[shot - 1], spots[shot]
+            elif phase == "pause" and now >= resume:
+                phase = "dribble"
+            if phase == "dribble":
+                gap = target - pos
+                dist = np.linalg.norm(gap)
+                want = gap / max(dist, 1e-12) * min(dribble[shot], np.sqrt(2.0 * accel * dist))
+                change = want - vel
+                size = np.linalg.norm(change)
+                vel = vel + change * min(1.0, accel * h / max(size, 1e-12))
+                pos = pos + vel * h
+                if dist < 0.005 and np.linalg.norm(vel) < 0.05:
+                    pos, vel, phase = target.copy(), np.zeros(2), "wait"
+                    if shot < n:
+                        ready = int(np.ceil((now + h + waits[shot]) / dt))
+                        kick_step = max(ready, int(scheduled[shot]))
+    return positions, speeds, np.array(kicks, np.int64)
+
+
 # --- Robot poses and odometry -------------------------------------------------------------------------------------
 
 
@@ -240,6 +453,39 @@ def walk_poses(
     odom = np.stack([forward * dt, sideways * dt, turn * dt], axis=-1)
     odom[0] = 0.0
     return integrate_odometry(odom)
+
+
+def turn_poses(
+    rng: np.random.Generator,
+    num_steps: int,
+    dt: float,
+    *,
+    max_rate_range=(0.75, 0.95),
+    freq_range=(0.15, 0.25),
+) -> tuple[np.ndarray, float]:
+    """A robot turning in place, left and right: the yaw oscillates with a slowly varying frequency.
+
+    The yaw is ``A (sin psi(t) - sin psi(0))``: it swings about ``-A sin psi(0)`` by ``+-A``; the phase
+    ``psi`` advances at a frequency that varies smoothly within ``freq_range`` (Hz), so the turn rate
+    changes smoothly and changes sign twice a period. ``A`` makes the largest turn rate between
+    consecutive steps equal a draw from ``max_rate_range`` (rad/s), over the run or two periods at the
+    lowest frequency, whichever is longer (a shorter run may turn more slowly; ``A`` stays bounded).
+
+    Returns:
+        ``(poses, centre)``: ``float64 [num_steps, 3]`` poses ``(0, 0, theta)`` (theta 0 at step 0) and the
+        yaw the swing is centred on.
+    """
+    lo, hi = freq_range
+    horizon = max(num_steps, int(np.ceil(2.0 / (lo * dt))))
+    freq = lo + 0.5 * (smooth_signal(rng, horizon, dt, freqs=(0.02, 0.08), terms=2) + 1.0) * (hi - lo)
+    phase0 = rng.uniform(0.0, 2.0 * np.pi)
+    psi = phase0 + 2.0 * np.pi * np.concatenate([[0.0], np.cumsum(0.5 * (freq[1:] + freq[:-1]) * dt)])
+    shape = np.sin(psi) - np.sin(phase0)
+    rate = np.abs(np.diff(shape)).max(initial=0.0) / dt
+    amplitude = rng.uniform(*max_rate_range) / rate
+    poses = np.zeros((num_steps, 3))
+    poses[:, 2] = amplitude * shape[:num_steps]
+    return poses, float(-amplitude * np.sin(phase0))
 
 
 # --- Random events ------------------------------------------------------------------------------------------------
