@@ -17,6 +17,10 @@ def test_every_method_builds_and_validates():
         hp.validate_params(method.params, method.model)
     with pytest.raises(ValueError, match="^method: must be one of"):
         hp.build("particle")
+    # `heatpf eval` compares every method.
+    from heatpf_jax.evaluate import DEFAULT_VARIANTS
+
+    assert {v.method for v in DEFAULT_VARIANTS} == set(presets.METHODS)
 
 
 def test_conventional_is_the_particle_filter_with_the_cluster_source():
