@@ -63,18 +63,4 @@ def test_spawn_and_filter_run(small_sequence):
     err = np.linalg.norm(np.asarray(res.info.mean) - small_sequence.ground_truth, axis=1)[-10:].mean()
     assert err < 0.2, err
 
-    from heatpf_jax import params as P
-
-    props = model.properties()
-    trainable, frozen = P.partition(P.as_arrays(params, props), props)
-    truth = jnp.asarray(small_sequence.ground_truth, jnp.float32)
-
-    def loss(u):
-        mean = hp.run(jax.random.key(0), small_sequence, P.combine(P.from_unconstrained(u, props), frozen),
-                      model).info.mean
-        return jnp.mean(jnp.sum((mean - truth) ** 2, axis=-1))
-
-    grads = jax.grad(loss)(P.to_unconstrained(trainable, props))
-    g = dict(zip(P.leaf_names(grads), (float(x) for x in jax.tree.leaves(grads)), strict=True))
-    assert all(np.isfinite(x) for x in g.values()), g
-    assert g["motion.accel_std"] != 0.0 and g["motion.spawn_speed_std"] != 0.0
+    # Gradients of a run with this motion model: tests/test_method_gradients.py (the heatmap method).
