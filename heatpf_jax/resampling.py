@@ -31,6 +31,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
 from heatpf_jax.params import unit_interval
 
 __all__ = [
+    "check_resampler",
     "RESAMPLERS",
     "ESSParams",
     "ESSResampling",
@@ -127,6 +128,12 @@ RESAMPLERS: dict[str, Callable[[PRNGKeyArray, Array, int], Array]] = {
 }
 
 
+def check_resampler(resampler) -> None:
+    """Raises ``ValueError`` naming ``resampler`` unless it is an index resampler (a function)."""
+    if not callable(resampler):
+        raise ValueError(f"resampler: must be a function (key, weights, num) -> indices, got {resampler!r}")
+
+
 class Resampled(NamedTuple):
     """What a resampling strategy returns.
 
@@ -178,8 +185,7 @@ class ESSResampling:
         return ESSParams(resample_threshold=unit_interval(trainable=False))
 
     def validate(self) -> None:
-        if not callable(self.resampler):
-            raise ValueError(f"resampler: must be a function (key, weights, num) -> indices, got {self.resampler!r}")
+        check_resampler(self.resampler)
 
     def resample(
         self,

@@ -41,7 +41,7 @@ from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from heatpf_jax.clustering import mean_shift
 from heatpf_jax.params import positive, unit_interval
-from heatpf_jax.resampling import Resampled, effective_sample_size, systematic
+from heatpf_jax.resampling import Resampled, check_resampler, effective_sample_size, systematic
 
 __all__ = ["ClusterParams", "ClusterResampling", "cluster_counts", "resample_by_cluster"]
 
@@ -168,8 +168,7 @@ class ClusterResampling:
         )
 
     def validate(self) -> None:
-        if not callable(self.resampler):
-            raise ValueError(f"resampler: must be a function (key, weights, num) -> indices, got {self.resampler!r}")
+        check_resampler(self.resampler)
         for name in ("num_seeds", "max_clusters", "num_iters"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
