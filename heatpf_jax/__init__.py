@@ -62,9 +62,11 @@ from heatpf_jax.motion import (
     move_particles,
 )
 from heatpf_jax.motion_inertia import InertiaParticles, MassInertia, MassInertiaParams
+from heatpf_jax.motion_score import ScoredParticles, ScoreMotion
 from heatpf_jax.motion_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
 from heatpf_jax.observation import (
     Floored,
+    GaussianDensity,
     GaussianKernel,
     InverseDistance,
     InverseDistanceParams,
@@ -97,22 +99,26 @@ from heatpf_jax.resampling import (
     systematic,
 )
 from heatpf_jax.resampling_clustered import ClusterParams, ClusterResampling
+from heatpf_jax.resampling_gradients import DetachResampling, SoftResampling, StopGradientResampling
 from heatpf_jax.rollout import RunResult, run, stack_params, validate_params
 from heatpf_jax.sequence import Sequence, SequenceError, load_sequence, save_sequence, validate_sequence
 from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
 from heatpf_jax.tracker import Tracker
+from heatpf_jax.tuning import Checkpointed, TuneResult, differentiable, mse_loss, nll_loss, trainable_names, tune
 
 __version__ = "0.1.0"
 
 __all__ = [
     "AgingBuffer",
     "AgingParams",
+    "Checkpointed",
     "ClusterCentreSource",
     "ClusterParams",
     "ClusterResampling",
     "Clusters",
     "ConstantVelocity",
     "ConstantVelocityParams",
+    "DetachResampling",
     "DiffusionOnly",
     "DominantMode",
     "ESSParams",
@@ -126,6 +132,7 @@ __all__ = [
     "Floored",
     "FootprintTemplate",
     "FootprintTemplateParams",
+    "GaussianDensity",
     "GaussianExplorerParams",
     "GaussianExplorers",
     "GaussianKernel",
@@ -156,14 +163,19 @@ __all__ = [
     "RandomWalkParams",
     "Resampled",
     "RunResult",
+    "ScoreMotion",
+    "ScoredParticles",
     "Sequence",
     "SequenceError",
+    "SoftResampling",
     "SourceParams",
     "StepInfo",
     "StepInputs",
+    "StopGradientResampling",
     "TopFraction",
     "TopFractionParams",
     "Tracker",
+    "TuneResult",
     "UniformBox",
     "UniformExplorers",
     "VelocityParticles",
@@ -173,6 +185,7 @@ __all__ = [
     "build",
     "camera_pose",
     "conventional_filter",
+    "differentiable",
     "diffuse",
     "downscale_heatmap",
     "effective_sample_size",
@@ -192,7 +205,9 @@ __all__ = [
     "move_and_diffuse",
     "move_measurements",
     "move_particles",
+    "mse_loss",
     "multinomial",
+    "nll_loss",
     "paper_filter",
     "particle_weights",
     "pixel_ray",
@@ -201,9 +216,9 @@ __all__ = [
     "project_points",
     "residual",
     "run",
+    "sample_measurements",
     "save_sequence",
     "sorted_top_fraction_estimate",
-    "sample_measurements",
     "spawn_gaussian",
     "spawn_uniform",
     "stack_params",
@@ -211,6 +226,8 @@ __all__ = [
     "systematic",
     "take_slots",
     "top_fraction_estimate",
+    "trainable_names",
+    "tune",
     "update_buffer",
     "validate_params",
     "validate_sequence",

@@ -37,6 +37,7 @@ from heatpf_jax.injection import ExplorerParams, InjectionContext, UniformBox, U
 from heatpf_jax.measurements import Measurements, empty_measurements
 from heatpf_jax.modes import Modes, NoModes
 from heatpf_jax.motion import RandomWalk, RandomWalkParams
+from heatpf_jax.motion_score import transition_log_weight
 from heatpf_jax.numerics import normalise_log, order_by_weight
 from heatpf_jax.observation import InverseDistance, InverseDistanceParams
 from heatpf_jax.pieces import StepInputs
@@ -249,6 +250,9 @@ class Filter(NamedTuple):
         buffer = self.buffer.update(state.buffer, new, inputs, params.buffer)
 
         unnormalised = state.log_weights + self.observation.log_likelihood(particles.xy, buffer, params.observation)
+        transition = transition_log_weight(particles)  # score-form motion only (heatpf_jax.motion_score)
+        if transition is not None:
+            unnormalised = unnormalised + transition
         log_likelihood = jax.nn.logsumexp(unnormalised)
         log_w = normalise_log(unnormalised, log_likelihood)
         weights = jnp.exp(log_w)

@@ -182,6 +182,26 @@ class RandomWalk:
         del weights
         return particles
 
+    # The Gaussian form of ``predict`` (:class:`heatpf_jax.motion_score.ScoreMotion`): ``predict`` draws
+    # ``noise_std * N(0, I)`` and applies ``transition``; the two methods below are that split.
+
+    def noise_std(self, particles: Particles, inputs, params: RandomWalkParams) -> Float[Array, "1 3"]:
+        """Std of each noise component: translation x, y (odometry and diffusion together), rotation."""
+        odometry = jnp.asarray(inputs.odometry, particles.xy.dtype)
+        sq = odometry[0] ** 2 + odometry[1] ** 2
+        std = safe_sqrt(params.odom_trans_noise * params.odom_trans_noise * sq + params.diffusion_std**2)
+        return jnp.stack([std, std, params.odom_rot_noise * jnp.abs(odometry[2])])[None, :]
+
+    def transition(self, particles: Particles, noise: Float[Array, "n 3"], inputs, params) -> Particles:
+        """``R(dtheta + e_3)^T (p - d) + (e_1, e_2)`` for scaled noise ``e`` (:func:`move_and_diffuse`)."""
+        del params
+        odometry = jnp.asarray(inputs.odometry, particles.xy.dtype)
+        n = particles.xy.shape[0]
+        theta = odometry[2] + noise[:, 2]
+        shift = jnp.broadcast_to(odometry[None, :2], (n, 2))
+        moved = apply_odometry(particles.xy, jnp.concatenate([shift, theta[:, None]], axis=1))
+        return particles._replace(xy=moved + noise[:, :2])
+
 
 class DiffusionParams(NamedTuple):
     """Numbers of :class:`DiffusionOnly`.
@@ -217,3 +237,11 @@ class DiffusionOnly:
     def remember(self, particles: Particles, weights: Float[Array, " n"]) -> Particles:
         del weights
         return particles
+
+    def noise_std(self, particles: Particles, inputs, params: DiffusionParams) -> Float[Array, "1 2"]:
+        del inputs
+        return jnp.broadcast_to(jnp.asarray(params.diffusion_std, particles.xy.dtype), (1, 2))
+
+    def transition(self, particles: Particles, noise: Float[Array, "n 2"], inputs, params) -> Particles:
+        del inputs, params
+        return particles._replace(xy=particles.xy + noise)

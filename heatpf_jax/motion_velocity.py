@@ -93,6 +93,36 @@ class ConstantVelocity:
         del weights
         return particles
 
+    # The Gaussian form of ``predict`` (:class:`heatpf_jax.motion_score.ScoreMotion`): ``predict`` draws
+    # ``noise_std * N(0, I)`` and applies ``transition``; the two methods below are that split.
+
+    def noise_std(self, particles: VelocityParticles, inputs, params: ConstantVelocityParams) -> Float[Array, "1 7"]:
+        """Std of each noise component: odometry translation x, y and rotation, acceleration x, y, diffusion x, y."""
+        odometry = jnp.asarray(inputs.odometry, particles.xy.dtype)
+        dist = safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)
+        trans = params.odom_trans_noise * dist
+        accel = jnp.asarray(params.accel_std, particles.xy.dtype)
+        diff = jnp.asarray(params.diffusion_std, particles.xy.dtype)
+        rot = params.odom_rot_noise * jnp.abs(odometry[2])
+        return jnp.stack([trans, trans, rot, accel, accel, diff, diff])[None, :]
+
+    def transition(
+        self, particles: VelocityParticles, noise: Float[Array, "n 7"], inputs, params
+    ) -> VelocityParticles:
+        """``predict`` for scaled noise ``e`` (``e = noise_std * N(0, I)``)."""
+        del params
+        xy, v = particles.xy, particles.v
+        dt = jnp.asarray(inputs.dt, xy.dtype)
+        odometry = jnp.asarray(inputs.odometry, xy.dtype)
+        shift = odometry[None, :2] + noise[:, :2]
+        theta = odometry[2] + noise[:, 2]
+        xy = apply_odometry(xy, jnp.concatenate([shift, theta[:, None]], axis=1))
+        c, s = jnp.cos(theta), jnp.sin(theta)
+        v = jnp.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1]], axis=-1)
+        accel = noise[:, 3:5]
+        xy = xy + v * dt + 0.5 * accel * dt * dt + noise[:, 5:7]
+        return VelocityParticles(xy=xy, v=v + accel * dt)
+
 
 def move_with_odometry(
     xy: Float[Array, "n 2"],

@@ -14,6 +14,7 @@ which lets the filter be checked against a Kalman posterior.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -32,6 +33,7 @@ __all__ = [
     "KNN_METHODS",
     "FloorParams",
     "Floored",
+    "GaussianDensity",
     "GaussianKernel",
     "GaussianKernelParams",
     "InverseDistance",
@@ -248,6 +250,23 @@ class GaussianKernel(_KNearestModel):
     ) -> Float[Array, " n"]:
         w = gaussian_particle_weights(xy, buffer, params.k, std=params.obs_std, k_max=self.k_max, method=self.knn)
         return safe_log(w)
+
+
+@dataclass(frozen=True)
+class GaussianDensity(GaussianKernel):
+    """The normalised form of :class:`GaussianKernel`: ``log sum_{j in C_i} w(m_j) N(m_j; p_i, obs_std^2 I)``.
+
+    The same weights up to the factor ``1 / (2 pi obs_std^2)``, which does not change the filter's
+    estimates but makes ``StepInfo.log_likelihood`` the log-likelihood of the measurements as a function
+    of ``obs_std``: with one measurement of activation 1 and k = 1 it is the exact Gaussian observation
+    density, so maximum-likelihood tuning of ``obs_std`` (:mod:`heatpf_jax.tuning`) is well posed.
+    """
+
+    def log_likelihood(
+        self, xy: Float[Array, "n 2"], buffer: Measurements, params: GaussianKernelParams
+    ) -> Float[Array, " n"]:
+        log_norm = -math.log(2.0 * math.pi) - 2.0 * jnp.log(params.obs_std)
+        return super().log_likelihood(xy, buffer, params) + jnp.where(jnp.any(buffer.valid), log_norm, 0.0)
 
 
 class FloorParams(NamedTuple):

@@ -32,6 +32,7 @@ from heatpf_jax.observation import (
     KNN_METHODS,
     Floored,
     FloorParams,
+    GaussianDensity,
     GaussianKernel,
     InverseDistance,
     InverseDistanceParams,
@@ -69,7 +70,12 @@ MODE_FINDERS = {
     "kmeans": lambda k: KMeansModes(num_modes=k),
     "gmm": lambda k: GaussianMixtureModes(num_modes=k),
 }
-OBSERVATIONS = {"inverse_distance": InverseDistance, "gaussian": GaussianKernel, "range_aware": FootprintTemplate}
+OBSERVATIONS = {
+    "inverse_distance": InverseDistance,
+    "gaussian": GaussianKernel,
+    "gaussian_density": GaussianDensity,
+    "range_aware": FootprintTemplate,
+}
 AUTO = "auto"  # a static option left to the method's own choice
 
 
