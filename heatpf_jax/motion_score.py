@@ -80,12 +80,13 @@ def gaussian_log_score(noise: Float[Array, "n d"], std: Float[Array, "1 d"]) -> 
 class ScoreMotion:
     """A Gaussian motion model whose parameters get score-form gradients (see the module docstring).
 
-    The forward pass equals the wrapped model's for the same key: the same normals, scaled by the same
-    standard deviations. Params and properties are the wrapped model's.
+    The positions are the wrapped model's ``predict`` itself (the same values for the same key, bit for
+    bit); params and properties are the wrapped model's.
 
     Attributes:
         motion: a motion model with ``noise_std(particles, inputs, params) -> [1 or N, D]`` and
-            ``transition(particles, noise, inputs, params)``.
+            ``transition(particles, noise, inputs, params)``, whose ``predict(key, ...)`` equals
+            ``transition(particles, noise_std * jax.random.normal(key, (N, D)), ...)``.
     """
 
     motion: Any
@@ -111,10 +112,12 @@ class ScoreMotion:
 
     def predict(self, key: PRNGKeyArray, particles: ScoredParticles, inputs, params) -> ScoredParticles:
         state = particles.state
+        # The positions are the wrapped model's own predict (bit for bit), without a gradient; the score
+        # uses the same normals, which a Gaussian model draws as jax.random.normal(key, (N, D)).
+        moved = self.motion.predict(key, lax.stop_gradient(state), inputs, lax.stop_gradient(params))
         std = self.motion.noise_std(state, inputs, params)
         normal = jax.random.normal(key, (state.xy.shape[0], std.shape[-1]), state.xy.dtype)
         noise = lax.stop_gradient(std) * normal
-        moved = self.motion.transition(lax.stop_gradient(state), noise, inputs, lax.stop_gradient(params))
         return ScoredParticles(state=lax.stop_gradient(moved), log_transition=gaussian_log_score(noise, std))
 
     def remember(self, particles: ScoredParticles, weights: Float[Array, " n"]) -> ScoredParticles:

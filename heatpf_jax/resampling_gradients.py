@@ -71,6 +71,9 @@ class StopGradientResampling:
     ) -> Resampled:
         res = self.resampling.resample(key, xy, log_weights, order, params)
         inherited = log_weights[res.ancestors]
+        # A zero weight (log -inf, possible where nothing was resampled) inherits no gradient and no NaN.
+        finite = jnp.isfinite(inherited)
+        inherited = jnp.where(finite, inherited, 0.0)
         new = lax.stop_gradient(res.log_weights) + (inherited - lax.stop_gradient(inherited))
         return res._replace(log_weights=new)
 

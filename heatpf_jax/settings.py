@@ -17,6 +17,7 @@ __all__ = [
     "format_value",
     "full_name",
     "grid_config",
+    "layered_settings",
     "method_names",
     "method_with_settings",
     "option_fields",
@@ -92,13 +93,19 @@ def full_name(name: str, method: str, options) -> str:
 # ------------------------------------------------------------------------------------------ settings
 
 
-def parse_settings(assignments: list[str], methods=("heatmap",)):
+def parse_settings(assignments: list[str], methods=("heatmap",), base=None):
     """Parses ``--set name=value`` items into static options and parameter settings.
 
     A name is a :class:`~heatpf_jax.presets.FilterOptions` field (``num_particles``, ``resampler``,
     ...) or a parameter of one of ``methods``, dotted (``motion.diffusion_std``) or by its last
-    part where that is unambiguous (``diffusion_std``). A ``k`` above the default ``k_max`` raises
-    ``k_max``, unless ``k_max`` was given too.
+    part where that is unambiguous (``diffusion_std``). A ``k`` above ``k_max`` raises ``k_max``,
+    unless ``k_max`` was given too.
+
+    Args:
+        assignments: the ``name=value`` items.
+        methods: the methods whose parameters the names may be.
+        base: the options the static settings change (default :class:`~heatpf_jax.presets.FilterOptions()`;
+            a ``--params`` file's options).
 
     Returns:
         ``(options, settings)``: a :class:`~heatpf_jax.presets.FilterOptions` and ``{name: value}``.
@@ -126,7 +133,7 @@ def parse_settings(assignments: list[str], methods=("heatmap",)):
                 o_updates[name] = parse_value(name, value, type(default))
         else:
             raw[name] = value
-    options = FilterOptions()._replace(**o_updates)
+    options = (FilterOptions() if base is None else base)._replace(**o_updates)
     validate_options(options)
     settings = {}
     for typed, value in raw.items():
@@ -249,13 +256,16 @@ def check_burn_in(burn_in: int, num_steps: int | None = None) -> None:
         )
 
 
-def checked_settings(args, methods):
-    """Parses and checks --set for every method before any data is loaded or simulated."""
+def checked_settings(args, methods, base=None):
+    """Parses and checks --set for every method before any data is loaded or simulated.
+
+    ``base``: the options ``--set`` changes (default ``FilterOptions()``; a ``--params`` file's options).
+    """
     from heatpf_jax import params as P
     from heatpf_jax.presets import build
     from heatpf_jax.rollout import validate_params
 
-    options, settings = parse_settings(args.set or [], methods)
+    options, settings = parse_settings(args.set or [], methods, base)
     given = {item.partition("=")[0].strip() for item in args.set or []}
     unused = [name for name in unused_options(options, methods) if name in given]
     if unused:
@@ -265,6 +275,33 @@ def checked_settings(args, methods):
         model, params = build(method, options)
         validate_params(P.set_by_name(params, model.properties(), settings, skip_unknown=True), model)
     return options, settings
+
+
+def layered_settings(method: str, options, *layers: dict, skip_unknown: bool = False) -> dict:
+    """``{dotted name: value}`` of ``method`` from several ``{name: value}`` layers, a later layer winning.
+
+    Names may be short or aliases (``diffusion_std``, ``kalman_meas_std``): each layer's names are made
+    full first, so a short name in a later layer replaces the dotted one of an earlier layer.
+
+    Args:
+        method: a name in ``heatpf_jax.presets.METHODS``.
+        options: the static options (they decide which parameters exist).
+        *layers: e.g. a ``--params`` file's parameters, then ``--set``'s.
+        skip_unknown: leave out names that are no parameter of ``method`` (settings shared by several
+            methods); otherwise they are kept as given (and refused where they are applied).
+    """
+    from heatpf_jax import params as P
+    from heatpf_jax.presets import build
+
+    names = P.leaf_names(build(method, options).model.properties())
+    out = {}
+    for layer in layers:
+        for name, value in layer.items():
+            full = P.resolve_name(ALIASES.get(name, name), names)
+            if full is None and skip_unknown:
+                continue
+            out[full or name] = value
+    return out
 
 
 def method_with_settings(method: str, options, settings):

@@ -109,6 +109,8 @@ def differentiable(
         raise ValueError(f"resampling: must be one of {list(RESAMPLING_GRADIENTS)}, got {resampling!r}")
     if motion not in MOTION_GRADIENTS:
         raise ValueError(f"motion: must be one of {list(MOTION_GRADIENTS)}, got {motion!r}")
+    if not all(hasattr(model, piece) for piece in ("resampling", "motion", "_replace")):
+        raise ValueError(f"model: {type(model).__name__} is not a particle filter (no resampling or motion pieces)")
     pieces = {}
     if resampling == "stop_gradient":
         pieces["resampling"] = StopGradientResampling(model.resampling)
@@ -293,7 +295,8 @@ def tune(
     params = P.as_arrays(init_params, props)
     trainable, frozen = P.partition(params, props)
     u = P.to_unconstrained(trainable, props)
-    opt_state = optimizer.init(u)
+    with jax.numpy_dtype_promotion("standard"):
+        opt_state = optimizer.init(u)
 
     def batch_loss(u, frozen, keys, seqs, truths):
         p = P.combine(P.from_unconstrained(u, props), frozen)
@@ -307,8 +310,10 @@ def tune(
     @jax.jit
     def update(u, frozen, opt_state, keys, seqs, truths):
         value, grads = jax.value_and_grad(batch_loss)(u, frozen, keys, seqs, truths)
-        updates, opt_state = optimizer.update(grads, opt_state, u)
-        return optax.apply_updates(u, updates), opt_state, value
+        # optax mixes Python floats and int32 counts, which strict dtype promotion refuses.
+        with jax.numpy_dtype_promotion("standard"):
+            updates, opt_state = optimizer.update(grads, opt_state, u)
+            return optax.apply_updates(u, updates), opt_state, value
 
     evaluate = jax.jit(batch_loss)
     dummy = np.zeros((train.heatmaps.shape[0], 1, 2), np.float32)

@@ -53,9 +53,10 @@ def linear_gaussian_filter(num_particles: int = 1024, spawn_half_width: float = 
     """The bootstrap particle filter of the problem and its params at ``(q, r) = (0.4, 0.8)``.
 
     Random walk (diffusion ``q``), one measurement (threshold 0.5, no distance limit: the walk wanders
-    far from the origin, no aging), the Gaussian observation
-    density with ``k = 1``, the weighted mean as output, systematic resampling at every step, no explorers;
-    the initial particles are uniform over ``[-w, w]^2`` around the walk's start.
+    far from the origin, no aging), the Gaussian observation density with ``k = 1``, the weighted mean as
+    output, systematic resampling when the ESS falls below N / 2 (resampling at every step coalesces the
+    genealogy sooner and biases the path-space gradient of the estimate: ``benchmarks/gradients.py``), no
+    explorers; the initial particles are uniform over ``[-w, w]^2`` around the walk's start.
 
     Returns:
         ``(filter, params)``.
@@ -68,8 +69,8 @@ def linear_gaussian_filter(num_particles: int = 1024, spawn_half_width: float = 
                       spawn_box=(-w, w, -w, w))
     )
     params = model.make_params(
-        k=1, threshold=0.5, max_distance=float("inf"), obs_std=0.8, resample_threshold=0.5, diffusion_std=0.4, explorer_fraction=0.0, top_fraction=1.0, aging=0.0,
-        odom_trans_noise=0.0, odom_rot_noise=0.0,
+        k=1, threshold=0.5, max_distance=float("inf"), obs_std=0.8, resample_threshold=0.5, diffusion_std=0.4,
+        explorer_fraction=0.0, top_fraction=1.0, aging=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0,
     )
     return model, params
 
