@@ -550,7 +550,7 @@ def _tune_names(items: list[str] | None, method: str, model) -> list[str] | None
 
     try:
         differentiable(model)
-    except AttributeError:
+    except (AttributeError, ValueError):
         raise ValueError(f"--method: {method} is no particle filter; `heatpf tune` tunes particle filters") from None
     trainable = trainable_names(model)
     if not trainable:

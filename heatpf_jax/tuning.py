@@ -176,6 +176,30 @@ def _mask(model, names: Seq[str] | None):
     return jax.tree.unflatten(treedef, leaves), sorted(chosen, key=all_names.index)
 
 
+def _select(u, fixed, chosen, properties):
+    """The trainable leaves: ``from_unconstrained(u)`` where ``chosen``, else their fixed (given) values."""
+    return jax.tree.map(
+        lambda prop, uu, fx, c: jnp.where(c, prop.from_unconstrained(uu), fx) if prop.trainable else None,
+        properties, u, fixed, chosen, is_leaf=lambda x: isinstance(x, P.Param),
+    )
+
+
+def _batch_loss(u, fixed, chosen, frozen, keys, seqs, truths, model, loss, burn_in):
+    """Mean loss over sequences (vmapped) and filter seeds (vmapped, the same for every sequence)."""
+    props = model.properties()
+    p = P.combine(_select(u, fixed, chosen, props), frozen)
+
+    def one(seq, truth):
+        return jnp.mean(jax.vmap(lambda k: run_loss(k, seq, truth, p, model, loss, burn_in))(keys))
+
+    return jnp.mean(jax.vmap(one)(seqs, truths))
+
+
+_STATIC = ("model", "loss", "burn_in")
+_loss_jit = jax.jit(_batch_loss, static_argnames=_STATIC)
+_loss_and_grad = jax.jit(jax.value_and_grad(_batch_loss), static_argnames=_STATIC)
+
+
 def run_loss(key: PRNGKeyArray, sequence: Sequence, truth, params, model, loss: str = "mse", burn_in: int = 10):
     """The loss of one run (traced; ``sequence`` and ``params`` prepared by :func:`heatpf_jax.rollout.prepare_run`)."""
     info = run_core(key, sequence, params, model).info
@@ -292,37 +316,38 @@ def tune(
     optimizer = optimizer if optimizer is not None else optax.adam(0.05)
     optimizer = optax.chain(optax.clip_by_global_norm(clip_norm), optimizer)
 
-    params = P.as_arrays(init_params, props)
-    trainable, frozen = P.partition(params, props)
-    u = P.to_unconstrained(trainable, props)
+    # One compilation per (model, loss, burn-in, shapes), shared by every tune() call whatever is tuned: the
+    # gradient is taken for every trainable parameter, and ``chosen`` (a traced mask) keeps the others fixed.
+    full = diff_model.properties()
+    params = P.as_arrays(init_params, full)
+    trainable, frozen = P.partition(params, full)
+    chosen = jax.tree.map(lambda a: np.asarray(a.trainable), props, is_leaf=lambda x: isinstance(x, P.Param))
+    chosen, _ = P.partition(chosen, full)
+    u = P.to_unconstrained(trainable, full)
     with jax.numpy_dtype_promotion("standard"):
         opt_state = optimizer.init(u)
 
-    def batch_loss(u, frozen, keys, seqs, truths):
-        p = P.combine(P.from_unconstrained(u, props), frozen)
-
-        def one(seq, tr):
-            per_seed = jax.vmap(lambda k: run_loss(k, seq, tr, p, diff_model, loss, burn_in))(keys)
-            return jnp.mean(per_seed)
-
-        return jnp.mean(jax.vmap(one)(seqs, truths))
-
     @jax.jit
-    def update(u, frozen, opt_state, keys, seqs, truths):
-        value, grads = jax.value_and_grad(batch_loss)(u, frozen, keys, seqs, truths)
+    def apply(grads, opt_state, u):
         # optax mixes Python floats and int32 counts, which strict dtype promotion refuses.
         with jax.numpy_dtype_promotion("standard"):
             updates, opt_state = optimizer.update(grads, opt_state, u)
-            return optax.apply_updates(u, updates), opt_state, value
+            return optax.apply_updates(u, updates), opt_state
 
-    evaluate = jax.jit(batch_loss)
+    def update(u, opt_state, keys, seqs, truths):
+        value, grads = _loss_and_grad(u, trainable, chosen, frozen, keys, seqs, truths, diff_model, loss, burn_in)
+        return (*apply(grads, opt_state, u), value)
+
     dummy = np.zeros((train.heatmaps.shape[0], 1, 2), np.float32)
     truths = dummy if truth is None else truth
     val_keys = jax.random.split(jax.random.fold_in(key, -1 & 0x7FFFFFFF), num_seeds)
 
+    def constrained(u):
+        return _select(u, trainable, chosen, full)
+
     def values(u):
-        leaves = jax.tree.leaves(P.from_unconstrained(u, props))
-        return {n: float(v) for n, v in zip(tuned, leaves, strict=True)}
+        by_name = dict(zip(P.leaf_names(full), jax.tree.leaves(P.combine(constrained(u), frozen)), strict=True))
+        return {n: float(by_name[n]) for n in tuned}
 
     path = {n: [] for n in tuned}
     history, val_hist, val_steps = [], [], []
@@ -331,19 +356,20 @@ def tune(
             path[n].append(v)
         if val is not None and (i % validate_every == 0 or i == steps):
             vt = np.zeros((val.heatmaps.shape[0], 1, 2), np.float32) if val_truth is None else val_truth
-            val_hist.append(float(evaluate(u, frozen, val_keys, val, vt)))
+            val_hist.append(float(_loss_jit(u, trainable, chosen, frozen, val_keys, val, vt, diff_model, loss,
+                                            burn_in)))
             val_steps.append(i)
         if i == steps:
             break
         keys = jax.random.split(jax.random.fold_in(key, i), num_seeds)
-        u, opt_state, value = update(u, frozen, opt_state, keys, train, truths)
+        u, opt_state, value = update(u, opt_state, keys, train, truths)
         value = float(value)
         if not np.isfinite(value):
             raise FloatingPointError(f"tune: the loss became {value} at step {i}")
         history.append(value)
         if callback is not None:
             callback(i, value)
-    out = P.combine(P.from_unconstrained(u, props), frozen)
+    out = P.combine(constrained(u), frozen)
     out = jax.tree.map(lambda x: np.asarray(x), out)
     return TuneResult(
         params=out,

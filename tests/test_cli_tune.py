@@ -37,13 +37,17 @@ def _no_compilation_cache(monkeypatch):
 
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
-    """One tiny real tuning: 2 gradient steps of every trainable parameter on one 20-step sequence."""
+    """One tiny real tuning: 2 gradient steps of every trainable parameter on two 20-step sequences.
+
+    The sequences, filter seeds and burn-in are those of tests/test_tuning.py, whose `tune` then reuses this
+    compiled gradient (one compilation per model, loss, burn-in and shapes, whatever is tuned)."""
     root = tmp_path_factory.mktemp("tune")
     seq = simulate_standard(3, num_steps=20, shrink=4)  # the shapes of conftest's small_sequence
-    seq_path, out = root / "seq.npz", root / "tuned.json"
+    seq_path, seq2_path, out = root / "seq.npz", root / "seq2.npz", root / "tuned.json"
     hp.save_sequence(seq_path, seq)
-    argv = ["tune", str(seq_path), "--steps", "2", "--filter-seeds", "1", "--burn-in", "2", "--lr", "0.2",
-            "-o", str(out), *SMALL_ARGS]
+    hp.save_sequence(seq2_path, simulate_standard(4, num_steps=20, shrink=4))
+    argv = ["tune", str(seq_path), str(seq2_path), "--steps", "2", "--filter-seeds", "2", "--burn-in", "10",
+            "--lr", "0.2", "-o", str(out), *SMALL_ARGS]
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
         assert main(argv) == 0
