@@ -14,6 +14,8 @@ each particle's ancestry, which is Fisher's identity, ``d log p(y) = E[sum_t d l
 the particles' genealogy (Scibior and Wood 2021; Poyiadjis, Doucet and Singh 2011). The noise ``e`` is the
 latent variable: the map ``F`` from noise to state does not depend on ``theta``, so the identity holds
 for every Gaussian motion model written as ``transition(particles, e)``.
+Gradients of other parameters (a spawn speed or a jitter that reach positions through injected
+particles) stay pathwise.
 
 Pathwise gradients of a long run multiply Jacobians over every step and pass through resampling's
 discrete copies; the score form's variance grows only with the genealogy (see ``benchmarks/gradients.py``).
@@ -112,13 +114,14 @@ class ScoreMotion:
 
     def predict(self, key: PRNGKeyArray, particles: ScoredParticles, inputs, params) -> ScoredParticles:
         state = particles.state
-        # The positions are the wrapped model's own predict (bit for bit), without a gradient; the score
-        # uses the same normals, which a Gaussian model draws as jax.random.normal(key, (N, D)).
-        moved = self.motion.predict(key, lax.stop_gradient(state), inputs, lax.stop_gradient(params))
-        std = self.motion.noise_std(state, inputs, params)
+        # The positions are the wrapped model's own predict (bit for bit), with no gradient from the motion
+        # noise parameters (other gradients, e.g. of a spawn speed through injected particles, stay pathwise);
+        # the score uses the same normals, which a Gaussian model draws as jax.random.normal(key, (N, D)).
+        moved = self.motion.predict(key, state, inputs, lax.stop_gradient(params))
+        std = self.motion.noise_std(lax.stop_gradient(state), inputs, params)
         normal = jax.random.normal(key, (state.xy.shape[0], std.shape[-1]), state.xy.dtype)
         noise = lax.stop_gradient(std) * normal
-        return ScoredParticles(state=lax.stop_gradient(moved), log_transition=gaussian_log_score(noise, std))
+        return ScoredParticles(state=moved, log_transition=gaussian_log_score(noise, std))
 
     def remember(self, particles: ScoredParticles, weights: Float[Array, " n"]) -> ScoredParticles:
         return particles._replace(state=self.motion.remember(particles.state, weights))

@@ -1,6 +1,10 @@
 """Gradients of a run's loss with respect to every trainable parameter of the heatmap method (velocity,
 the range-aware observation, measurement explorers) and of the extended method (mass inertia, cluster-wise
-resampling, random particles) are finite, and nonzero for the new continuous ones."""
+resampling, random particles) are finite, and nonzero for the new continuous ones.
+
+The heatmap method is checked through one step of ``tune`` (score-form and stop-gradient estimators, every
+trainable parameter), on tests/test_tuning.py's sequences, so it reuses that compiled gradient; the extended
+method through ``jax.grad`` of a plain run (pathwise)."""
 
 from __future__ import annotations
 
@@ -11,6 +15,7 @@ import pytest
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
+from heatpf_jax.sim import simulate_standard
 from tests.conftest import SMALL_OPTIONS
 
 NEW = {
@@ -32,7 +37,21 @@ NEW = {
 }
 
 
-@pytest.mark.parametrize("method", sorted(NEW))
+def test_heatmap_tune_step_moves_every_new_parameter(small_sequence):
+    model, params = hp.build("heatmap", SMALL_OPTIONS)
+    sequences = [small_sequence, simulate_standard(4, num_steps=20, shrink=4)]  # test_tuning's
+    result = hp.tune(jax.random.key(0), sequences, params, model, steps=1, burn_in=10)
+    assert np.all(np.isfinite(result.history))
+    start = dict(zip(P.leaf_names(model.properties()), jax.tree.leaves(P.as_arrays(params, model.properties())),
+                     strict=True))
+    end = dict(zip(P.leaf_names(model.properties()), jax.tree.leaves(result.params), strict=True))
+    assert all(np.all(np.isfinite(v)) for v in end.values())
+    for name in NEW["heatmap"]:
+        # Adam's first step moves a parameter by lr in log coordinates unless its gradient is zero.
+        assert abs(np.log(float(end[name]) / float(start[name]))) > 0.01, (name, start[name], end[name])
+
+
+@pytest.mark.parametrize("method", ["extended"])
 def test_run_gradients_are_finite(small_sequence, method):
     model, params = hp.build(method, SMALL_OPTIONS)
     props = model.properties()
