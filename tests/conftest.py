@@ -20,6 +20,14 @@ SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=
 SMALL_FILTER = hp.paper_filter(SMALL_OPTIONS)
 
 
+def pytest_collection_modifyitems(session, config, items):
+    """Starts the notebooks in background kernels when their test is selected (tests/notebook_runs.py)."""
+    if any("test_notebooks.py::test_notebook_executes" in item.nodeid for item in items):
+        from tests.notebook_runs import start
+
+        start()
+
+
 @pytest.fixture(scope="session")
 def small_filter() -> hp.Filter:
     return SMALL_FILTER

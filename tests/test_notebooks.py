@@ -1,12 +1,8 @@
 """Every committed notebook executes top to bottom (so it cannot rot)."""
 
-from pathlib import Path
-
-import nbformat
 import pytest
-from nbclient import NotebookClient
 
-NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+from tests.notebook_runs import NOTEBOOKS, result
 
 # What each notebook must print: its result was produced.
 PRINTS = {
@@ -20,11 +16,10 @@ def test_every_notebook_is_checked():
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_notebook_executes(path, tmp_path):
-    nb = nbformat.read(path, as_version=4)
-    assert all(not cell.get("outputs") for cell in nb.cells if cell.cell_type == "code"), "commit notebooks stripped"
-    client = NotebookClient(nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
-    client.execute()
+def test_notebook_executes(path):
+    """Executed in a background kernel since the session started (tests/notebook_runs.py)."""
+    stripped, nb = result(path)
+    assert stripped, "commit notebooks stripped"
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors
     printed = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
