@@ -39,6 +39,7 @@ __all__ = [
     "effective_sample_size",
     "multinomial",
     "residual",
+    "sorted_resampled",
     "stratified",
     "systematic",
 ]
@@ -201,12 +202,27 @@ class ESSResampling:
         ess = effective_sample_size(weights)
         resampled = ess < params.resample_threshold * n
         idx = self.resampler(key, weights[order], n)
-        slots = jnp.arange(n, dtype=jnp.int32)
-        inverse = jnp.zeros((n,), jnp.int32).at[order].set(slots, unique_indices=True)
-        return Resampled(
-            ancestors=jnp.where(resampled, order[idx], slots),
-            log_weights=jnp.where(resampled, jnp.full_like(log_weights, -math.log(n)), log_weights),
-            rank=jnp.where(resampled, slots, inverse),
-            resampled=resampled,
-            ess=ess,
-        )
+        return sorted_resampled(resampled, order[idx], jnp.full_like(log_weights, -math.log(n)), log_weights, order,
+                                ess)
+
+
+def sorted_resampled(
+    resampled: Bool[Array, ""],
+    ancestors: Int[Array, " n"],
+    new_log_weights: Float[Array, " n"],
+    log_weights: Float[Array, " n"],
+    order: Int[Array, " n"],
+    ess: Float[Array, ""],
+) -> Resampled:
+    """The :class:`Resampled` of a draw made in the order of decreasing weight (slot i has support rank i), or,
+    where ``resampled`` is false, every particle kept in its slot with its weight, ranked by ``order``."""
+    n = log_weights.shape[0]
+    slots = jnp.arange(n, dtype=jnp.int32)
+    inverse = jnp.zeros((n,), jnp.int32).at[order].set(slots, unique_indices=True)
+    return Resampled(
+        ancestors=jnp.where(resampled, ancestors, slots),
+        log_weights=jnp.where(resampled, new_log_weights, log_weights),
+        rank=jnp.where(resampled, slots, inverse),
+        resampled=resampled,
+        ess=ess,
+    )

@@ -31,13 +31,34 @@ from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from heatpf_jax.numerics import normalise_log
 from heatpf_jax.params import unit_interval
-from heatpf_jax.resampling import ESSParams, Resampled, check_resampler, effective_sample_size, systematic
+from heatpf_jax.resampling import (
+    ESSParams,
+    Resampled,
+    check_resampler,
+    effective_sample_size,
+    sorted_resampled,
+    systematic,
+)
 
 __all__ = ["DetachResampling", "SoftResampling", "StopGradientResampling"]
 
 
+class _Wrapper:
+    """Delegates params, properties and validation to the wrapped strategy ``self.resampling``."""
+
+    def default_params(self):
+        return self.resampling.default_params()
+
+    def properties(self):
+        return self.resampling.properties()
+
+    def validate(self) -> None:
+        if hasattr(self.resampling, "validate"):
+            self.resampling.validate()
+
+
 @dataclass(frozen=True)
-class StopGradientResampling:
+class StopGradientResampling(_Wrapper):
     """The wrapped strategy with Scibior and Wood's stop-gradient correction of the new weights.
 
     Values (ancestors, ranks, weights) are exactly the wrapped strategy's; where it resampled, slot i's
@@ -50,16 +71,6 @@ class StopGradientResampling:
     """
 
     resampling: Any
-
-    def default_params(self):
-        return self.resampling.default_params()
-
-    def properties(self):
-        return self.resampling.properties()
-
-    def validate(self) -> None:
-        if hasattr(self.resampling, "validate"):
-            self.resampling.validate()
 
     def resample(
         self,
@@ -79,7 +90,7 @@ class StopGradientResampling:
 
 
 @dataclass(frozen=True)
-class DetachResampling:
+class DetachResampling(_Wrapper):
     """The wrapped strategy with every gradient through the weights stopped at resampling (the control).
 
     Where the strategy resampled, the new weights are constants; where it did not, they keep their
@@ -90,16 +101,6 @@ class DetachResampling:
     """
 
     resampling: Any
-
-    def default_params(self):
-        return self.resampling.default_params()
-
-    def properties(self):
-        return self.resampling.properties()
-
-    def validate(self) -> None:
-        if hasattr(self.resampling, "validate"):
-            self.resampling.validate()
 
     def resample(self, key, xy, log_weights, order, params) -> Resampled:
         res = self.resampling.resample(key, xy, log_weights, order, params)
@@ -152,13 +153,5 @@ class SoftResampling:
         q = alpha * lax.stop_gradient(weights) + (1.0 - alpha) / n
         idx = order[self.resampler(key, q[order], n)]
         new = normalise_log(log_weights[idx] - jnp.log(q[idx]))
-        slots = jnp.arange(n, dtype=jnp.int32)
-        inverse = jnp.zeros((n,), jnp.int32).at[order].set(slots, unique_indices=True)
-        return Resampled(
-            ancestors=jnp.where(resampled, idx, slots),
-            log_weights=jnp.where(resampled, new, log_weights),
-            rank=jnp.where(resampled, slots, inverse),
-            resampled=resampled,
-            ess=ess,
-        )
+        return sorted_resampled(resampled, idx, new, log_weights, order, ess)
 
