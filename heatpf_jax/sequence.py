@@ -10,6 +10,9 @@
 | ball_radius  | float64 []             | projection plane height, metres                      |
 | dt           | float64 []             | filter period, seconds                               |
 | ground_truth | float64 [T, 2], optional | ball (x, y) in the base frame of step t            |
+| robot_pose   | float64 [T, 3], optional | base (x, y, theta) in a world frame, from self-localisation |
+| pose_confidence | float64 [T], optional | its confidence in [0, 1] (1 if absent); needs robot_pose |
+| images       | uint8 [T, H, W, 3], optional | RGB frames at the heat maps' size (``heatpf colour``) |
 
 :func:`load_sequence` checks every key and raises :class:`SequenceError` with one
 line naming the file, the key (where one is at fault) and the problem, also for a
@@ -32,7 +35,15 @@ from numpy.lib import format as npy_format
 
 from heatpf_jax.files import write_atomic
 
-__all__ = ["FORMAT_VERSION", "Sequence", "SequenceError", "load_sequence", "save_sequence", "validate_sequence"]
+__all__ = [
+    "FORMAT_VERSION",
+    "OPTIONAL_INPUTS",
+    "Sequence",
+    "SequenceError",
+    "load_sequence",
+    "save_sequence",
+    "validate_sequence",
+]
 
 FORMAT_VERSION = 1
 
@@ -52,6 +63,9 @@ class Sequence(NamedTuple):
     ball_radius: np.ndarray
     dt: np.ndarray
     ground_truth: np.ndarray | None = None
+    robot_pose: np.ndarray | None = None
+    pose_confidence: np.ndarray | None = None
+    images: np.ndarray | None = None
 
     @property
     def num_steps(self) -> int:
@@ -59,7 +73,7 @@ class Sequence(NamedTuple):
 
     def head(self, num_steps: int) -> Sequence:
         """The first ``num_steps`` steps (per-step arrays cut, constants kept)."""
-        per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth")
+        per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth", *OPTIONAL_INPUTS)
         return self._replace(
             **{k: getattr(self, k)[:num_steps] for k in per_step if getattr(self, k) is not None}
         )
@@ -75,8 +89,12 @@ _SPEC = {
     "ball_radius": ("f", "float64", ()),
     "dt": ("f", "float64", ()),
     "ground_truth": ("f", "float64", ("T", 2)),
+    "robot_pose": ("f", "float64", ("T", 3)),
+    "pose_confidence": ("f", "float64", ("T",)),
+    "images": ("u", "uint8", ("T", "H", "W", 3)),
 }
-_REQUIRED = tuple(k for k in _SPEC if k != "ground_truth")
+OPTIONAL_INPUTS = ("robot_pose", "pose_confidence", "images")  # optional keys a method may read
+_REQUIRED = tuple(k for k in _SPEC if k not in ("ground_truth", *OPTIONAL_INPUTS))
 
 
 def _check_array(key: str, value, dims: dict[str, int]) -> np.ndarray:
@@ -142,6 +160,15 @@ def validate_sequence(seq: Sequence) -> Sequence:
         out[key] = _check_array(key, value, dims)
     if dims["T"] < 1:
         raise SequenceError("heatmaps: the sequence has no steps (T = 0)")
+    if out["images"] is not None and out["images"].dtype != np.uint8:
+        raise SequenceError(f"images: expected dtype uint8, got {_dtype_words(out['images'].dtype)}")
+    if out["pose_confidence"] is not None:
+        if out["robot_pose"] is None:
+            raise SequenceError("pose_confidence: given without robot_pose (the confidence of which poses?)")
+        conf = out["pose_confidence"]
+        if conf.size and (conf.min() < 0.0 or conf.max() > 1.0):
+            bad = int(np.flatnonzero((conf < 0.0) | (conf > 1.0))[0])
+            raise SequenceError(f"pose_confidence: must lie in [0, 1], got {conf[bad]} at step {bad}")
     if dims["H"] < 1 or dims["W"] < 1:
         raise SequenceError(f"heatmaps: empty heat maps of shape {out['heatmaps'].shape[1:]}")
     heat = out["heatmaps"]
@@ -177,8 +204,15 @@ def validate_sequence(seq: Sequence) -> Sequence:
         odometry=out["odometry"].astype(np.float64, copy=False),
         ball_radius=out["ball_radius"].astype(np.float64, copy=False),
         dt=out["dt"].astype(np.float64, copy=False),
-        ground_truth=None if out["ground_truth"] is None else out["ground_truth"].astype(np.float64, copy=False),
+        ground_truth=_float64(out["ground_truth"]),
+        robot_pose=_float64(out["robot_pose"]),
+        pose_confidence=_float64(out["pose_confidence"]),
+        images=out["images"],
     )
+
+
+def _float64(arr: np.ndarray | None) -> np.ndarray | None:
+    return None if arr is None else arr.astype(np.float64, copy=False)
 
 
 def load_sequence(path: str | os.PathLike) -> Sequence:
