@@ -186,9 +186,10 @@ def _program_key(model, treedef, args) -> str:
 
 
 def run_estimates(key, sequence, params, model, directory: str | os.PathLike | None):
-    """``run(key, sequence, params, model).info``'s ``mean``, ``cov`` and ``modes`` as NumPy arrays, from an
-    exported program: ``(mean [T, 2], cov [T, 2, 2], modes)`` with ``modes`` a :class:`~heatpf_jax.modes.Modes`
-    of NumPy arrays with a leading ``T`` axis.
+    """``run(key, sequence, params, model).info``'s ``mean``, ``cov``, ``modes`` and ``tracks`` as NumPy arrays,
+    from an exported program: ``(mean [T, 2], cov [T, 2, 2], modes, tracks)`` with ``modes`` a
+    :class:`~heatpf_jax.modes.Modes` and ``tracks`` a :class:`~heatpf_jax.memory.TrackTable` of NumPy arrays
+    with a leading ``T`` axis.
 
     With a cache ``directory``, the traced and lowered run is kept as a serialized ``jax.export``
     program under ``directory/exports``, keyed by everything it depends on (JAX version, this
@@ -207,7 +208,7 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
 
     def plain():
         info = run(key, sequence, params, model).info
-        return _numpy((info.mean, info.cov, *info.modes))
+        return _numpy((info.mean, info.cov, *info.modes, *info.tracks))
 
     if directory is None:
         return plain()
@@ -218,7 +219,7 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
     def estimates(key_data, *flat):
         s, p = jax.tree.unflatten(treedef, flat)
         info = run_core(jax.random.wrap_key_data(key_data), s, p, model).info
-        return (info.mean, info.cov, *info.modes)  # a plain tuple: exported programs keep standard pytrees
+        return (info.mean, info.cov, *info.modes, *info.tracks)  # a plain tuple: exports keep standard pytrees
 
     path = Path(directory) / _EXPORTS / f"{_program_key(model, treedef, args)}.bin"
     exported = None
@@ -244,10 +245,12 @@ def run_estimates(key, sequence, params, model, directory: str | os.PathLike | N
 def _numpy(outputs):
     import numpy as np
 
+    from heatpf_jax.memory import TrackTable
     from heatpf_jax.modes import Modes
 
-    mean, cov, *modes = (np.asarray(x) for x in outputs)
-    return mean, cov, Modes(*modes)
+    mean, cov, *rest = (np.asarray(x) for x in outputs)
+    k = len(Modes._fields)
+    return mean, cov, Modes(*rest[:k]), TrackTable(*rest[k:])
 
 
 def _call(exported, args):

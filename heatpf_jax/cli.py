@@ -94,6 +94,27 @@ def write_estimates_csv(path: str | os.PathLike, mean: np.ndarray, cov: np.ndarr
     write_atomic(path, write)
 
 
+TRACKS_HEADER = "t,id,age,x,y,vx,vy"
+
+
+def write_tracks_csv(path: str | os.PathLike, tracks) -> None:
+    """Writes the long-term memory's tracks, ``t,id,age,x,y,vx,vy``, one row per valid track per step, atomically.
+
+    Args:
+        path: the CSV file.
+        tracks: a :class:`~heatpf_jax.memory.TrackTable` of NumPy arrays with a leading ``T`` axis.
+    """
+    ids, valid, mean, age = (np.asarray(x) for x in (tracks.id, tracks.valid, tracks.mean, tracks.age))
+
+    def write(fh) -> None:
+        fh.write(TRACKS_HEADER + "\n")
+        for t, j in zip(*np.nonzero(valid), strict=True):  # by step, then by slot
+            x, y, vx, vy = mean[t, j]
+            fh.write(f"{t},{ids[t, j]},{age[t, j]:.3f},{x:.6f},{y:.6f},{vx:.6f},{vy:.6f}\n")
+
+    write_atomic(Path(path), write)
+
+
 def write_modes_csv(path: str | os.PathLike, modes) -> None:
     """Writes ``t,mode,weight,x,y,cov_xx,cov_xy,cov_yy``, one row per valid mode per step, atomically.
 
@@ -164,14 +185,14 @@ def _run_filter(seq, args, options, settings):
     model, params = method_with_settings(args.method, options, settings)
     start = time.perf_counter()
     # With the cache on, the traced run is kept as an exported program too: a warm start skips tracing.
-    mean, cov, modes = run_estimates(
+    mean, cov, modes, tracks = run_estimates(
         jax.random.key(args.seed), seq, params, model, getattr(args, "cache_dir", None)
     )
     elapsed = time.perf_counter() - start
     if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
         bad = int(np.flatnonzero(~np.all(np.isfinite(mean), axis=1) | ~np.all(np.isfinite(cov), axis=(1, 2)))[0])
         raise RuntimeError(f"the filter produced a non-finite estimate at step {bad}; please report this")
-    return mean, cov, modes, elapsed
+    return mean, cov, modes, tracks, elapsed
 
 
 def _report(name: str, seq, mean, elapsed: float, burn_in: int) -> None:
@@ -196,23 +217,38 @@ def _cmd_run(args) -> int:
         options = options._replace(modes="meanshift")  # --modes without a choice: mean-shift modes
     check_burn_in(args.burn_in)
     out = check_output("--output", args.output, inputs=[args.input], replace=args.force)
-    modes_out = None
-    if args.modes is not None:
-        modes_out = check_output("--modes", args.modes, inputs=[args.input], replace=args.force)
-        if same_file(modes_out, out) or modes_out.resolve() == out.resolve():
-            raise ValueError(f"--modes: {args.modes} is also --output; choose another file")
+    modes_out = _extra_output("--modes", args.modes, args, {"--output": out})
+    tracks_out = _extra_output("--tracks", args.tracks, args, {"--output": out, "--modes": modes_out})
+    if tracks_out is not None and options.memory == "none":
+        raise ValueError("--tracks: the filter has no long-term memory; add --set memory=tracks")
     seq = load_sequence(args.input)
     if seq.ground_truth is not None:
         check_burn_in(args.burn_in, seq.num_steps)
-    mean, cov, modes, elapsed = _run_filter(seq, args, options, settings)
+    mean, cov, modes, tracks, elapsed = _run_filter(seq, args, options, settings)
     write_estimates_csv(out, mean, cov)
     if modes_out is not None:
         write_modes_csv(modes_out, modes)
+    if tracks_out is not None:
+        write_tracks_csv(tracks_out, tracks)
     _report(str(args.input), seq, mean, elapsed, args.burn_in)
     print(f"wrote {out}")
     if modes_out is not None:
         print(f"wrote {modes_out} ({int(np.sum(modes.valid))} modes over {seq.num_steps} steps)")
+    if tracks_out is not None:
+        print(f"wrote {tracks_out} ({len(np.unique(tracks.id[tracks.valid]))} tracks, "
+              f"{int(np.sum(tracks.valid))} rows over {seq.num_steps} steps)")
     return 0
+
+
+def _extra_output(option: str, path, args, others) -> Path | None:
+    """A second output file of ``heatpf run`` (``--modes``, ``--tracks``), checked like ``--output``."""
+    if path is None:
+        return None
+    checked = check_output(option, path, inputs=[args.input], replace=args.force)
+    for name, other in others.items():
+        if other is not None and (same_file(checked, other) or checked.resolve() == Path(other).resolve()):
+            raise ValueError(f"{option}: {path} is also {name}; choose another file")
+    return checked
 
 
 def _cmd_demo(args) -> int:
@@ -647,7 +683,9 @@ def _build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--modes", metavar="MODES.csv", help="also write the modes of the particles per step: "
                        "t,mode,weight,x,y,cov_xx,cov_xy,cov_yy, one row per valid mode (by --set modes=meanshift|"
                        "kmeans|gmm, default meanshift; --set max_modes=K)")
-    p_run.add_argument("--force", action="store_true", help="replace existing --output and --modes files")
+    p_run.add_argument("--tracks", metavar="TRACKS.csv", help="also write the long-term memory's tracks per step: "
+                       "t,id,age,x,y,vx,vy, one row per track (needs --set memory=tracks)")
+    p_run.add_argument("--force", action="store_true", help="replace existing --output, --modes and --tracks files")
     p_run.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     _add_burn_in(p_run)
     _add_set(p_run)

@@ -2,13 +2,15 @@
 
 One step, in the order of the sequence-file contract::
 
+    ego.ego                 odometry or localisation (Olufs 3.5)      heatpf_jax.ego
     motion.predict          odometry, noise, diffusion (III-D)        heatpf_jax.motion
     source.measure          heat map -> Measurements (III-A, IV-B)    heatpf_jax.sources
     buffer.update           odometry on the buffer, aging (III-C)     heatpf_jax.buffers
     observation             log-likelihood per particle (III-B)       heatpf_jax.observation
     estimator.estimate      output (III-F)                            heatpf_jax.estimate
     resampling.resample     ESS trigger + index resampler (III-E)     heatpf_jax.resampling
-    injectors[i].inject     explorers (III-E), ...                    heatpf_jax.injection
+    memory.update           long-term track memory (Olufs 3.4)        heatpf_jax.memory
+    injectors[i].inject     explorers (III-E), hints, ...             heatpf_jax.injection
 
 Beside the pipeline, ``modes.modes`` reports fixed-size modes of the weighted particles (III-F, V;
 Olufs 3.2) in ``StepInfo.modes``: none by default (:class:`~heatpf_jax.modes.NoModes`).
@@ -32,9 +34,11 @@ from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax import params as P
 from heatpf_jax.buffers import AgingBuffer, AgingParams
+from heatpf_jax.ego import OdometryEgo
 from heatpf_jax.estimate import TopFraction, TopFractionParams
 from heatpf_jax.injection import ExplorerParams, InjectionContext, UniformBox, UniformExplorers
 from heatpf_jax.measurements import Measurements, empty_measurements
+from heatpf_jax.memory import NoMemory, TrackTable
 from heatpf_jax.modes import Modes, NoModes
 from heatpf_jax.motion import RandomWalk, RandomWalkParams
 from heatpf_jax.motion_score import transition_log_weight
@@ -62,6 +66,9 @@ class FilterParams(NamedTuple):
         estimator: params of ``Filter.estimator``.
         resampling: params of ``Filter.resampling``.
         injectors: ``{injector.name: params}`` for ``Filter.injectors``.
+        modes: params of ``Filter.modes``.
+        ego: params of ``Filter.ego``.
+        memory: params of ``Filter.memory``.
     """
 
     motion: Any = RandomWalkParams()
@@ -72,6 +79,8 @@ class FilterParams(NamedTuple):
     resampling: Any = ESSParams()
     injectors: dict = {"explorers": ExplorerParams()}  # noqa: RUF012 (never mutated)
     modes: Any = NoModes().default_params()
+    ego: Any = OdometryEgo().default_params()
+    memory: Any = NoMemory().default_params()
 
 
 class FilterState(NamedTuple):
@@ -84,6 +93,7 @@ class FilterState(NamedTuple):
         buffer: the measurement buffer (the source's size).
         mean: ``float32 [2]`` the last estimate.
         t: ``int32 []`` number of steps taken.
+        memory: the long-term memory's tracks (:class:`~heatpf_jax.memory.TrackTable`; capacity 0 without).
     """
 
     particles: Any
@@ -91,6 +101,7 @@ class FilterState(NamedTuple):
     buffer: Measurements
     mean: Float[Array, "2"]
     t: Int[Array, ""]
+    memory: TrackTable
 
 
 class StepInfo(NamedTuple):
@@ -114,6 +125,8 @@ class StepInfo(NamedTuple):
             resampling); slots refilled by injectors still name the ancestor they replaced.
         modes: :class:`~heatpf_jax.modes.Modes` of the weighted particles before resampling
             (``K = Filter.modes.num_modes``, 0 by default).
+        tracks: the long-term memory's :class:`~heatpf_jax.memory.TrackTable` after this step
+            (capacity ``Filter.memory.capacity``, 0 by default).
     """
 
     mean: Float[Array, "2"]
@@ -125,6 +138,7 @@ class StepInfo(NamedTuple):
     log_likelihood: Float[Array, ""]
     ancestors: Int[Array, " n"]
     modes: Modes
+    tracks: TrackTable
 
 
 def _piece_names(injectors) -> list[str]:
@@ -150,6 +164,9 @@ class Filter(NamedTuple):
         initial: initial distribution of the particles (a :class:`~heatpf_jax.injection.UniformBox`).
         num_particles: N.
         modes: multi-modal output (:mod:`heatpf_jax.modes`), none by default.
+        ego: what moves particles, buffer and tracks with the robot (:mod:`heatpf_jax.ego`): odometry
+            by default.
+        memory: the long-term memory (:mod:`heatpf_jax.memory`), none by default.
     """
 
     motion: Any = RandomWalk()
@@ -162,6 +179,13 @@ class Filter(NamedTuple):
     initial: Any = UniformBox()
     num_particles: int = 500
     modes: Any = NoModes()
+    ego: Any = OdometryEgo()
+    memory: Any = NoMemory()
+
+    @property
+    def requires(self) -> tuple[str, ...]:
+        """Optional sequence keys the pieces read (``("robot_pose",)`` for localisation ego-motion)."""
+        return tuple(getattr(self.ego, "requires", ()))
 
     # --- Parameters -------------------------------------------------------------------------------------
 
@@ -178,6 +202,8 @@ class Filter(NamedTuple):
             resampling=of(self.resampling),
             injectors={inj.name: of(inj) for inj in self.injectors},
             modes=of(self.modes),
+            ego=of(self.ego),
+            memory=of(self.memory),
         )
 
     def default_params(self) -> FilterParams:
@@ -204,7 +230,7 @@ class Filter(NamedTuple):
         if len(set(names)) != len(names):
             raise ValueError(f"injectors: names must differ, got {names}")
         for piece in (self.motion, self.source, self.buffer, self.observation, self.estimator, self.resampling,
-                      self.initial, self.modes, *self.injectors):
+                      self.initial, self.modes, self.ego, self.memory, *self.injectors):
             if hasattr(piece, "validate"):
                 piece.validate()
 
@@ -221,6 +247,7 @@ class Filter(NamedTuple):
             buffer=empty_measurements(self.source.size),
             mean=jnp.mean(xy, axis=0),
             t=jnp.zeros((), jnp.int32),
+            memory=self.memory.init(),
         )
 
     def step(
@@ -239,6 +266,8 @@ class Filter(NamedTuple):
         """
         k_motion, k_res, k_inject = jax.random.split(key, 3)
 
+        ego = self.ego.ego(inputs, params.ego)
+        inputs = inputs._replace(odometry=ego.particles)
         particles = self.motion.predict(k_motion, state.particles, inputs, params.motion)
         size = self.source.size
         new = lax.cond(
@@ -264,6 +293,7 @@ class Filter(NamedTuple):
         modes = self.modes.modes(jax.random.fold_in(key, 7), particles.xy, weights, params.modes)
         res = self.resampling.resample(k_res, particles.xy, log_w, order, params.resampling)
         particles = jax.tree.map(lambda x: x[res.ancestors], particles)
+        tracks = self.memory.update(state.memory, modes, est.mean, buffer, ego.tracks, inputs.dt, params.memory)
 
         context = InjectionContext(
             particles=particles,
@@ -274,6 +304,8 @@ class Filter(NamedTuple):
             motion=self.motion,
             motion_params=params.motion,
             measurements=buffer,
+            memory=tracks,
+            memory_lost=self.memory.lost(tracks, params.memory),
         )
         # One injector takes the step's key itself; several split it.
         keys = (k_inject,) if len(self.injectors) == 1 else tuple(jax.random.split(k_inject, len(self.injectors)))
@@ -286,6 +318,7 @@ class Filter(NamedTuple):
             buffer=buffer,
             mean=est.mean,
             t=state.t + 1,
+            memory=tracks,
         )
         info = StepInfo(
             mean=est.mean,
@@ -297,5 +330,6 @@ class Filter(NamedTuple):
             log_likelihood=log_likelihood,
             ancestors=res.ancestors,
             modes=modes,
+            tracks=tracks,
         )
         return new_state, info

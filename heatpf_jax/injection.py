@@ -120,6 +120,8 @@ class InjectionContext(NamedTuple):
         motion_params: its params.
         measurements: this step's measurement buffer (:class:`~heatpf_jax.measurements.Measurements`),
             for injectors that draw from the measurements; ``None`` where there is none.
+        memory: the long-term memory's tracks after this step (:class:`~heatpf_jax.memory.TrackTable`).
+        memory_lost: ``bool [M]`` the tracks the filter has lost (:func:`heatpf_jax.memory.lost_tracks`).
     """
 
     particles: Any
@@ -130,6 +132,8 @@ class InjectionContext(NamedTuple):
     motion: Any
     motion_params: Any
     measurements: Any = None
+    memory: Any = None
+    memory_lost: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

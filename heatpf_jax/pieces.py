@@ -46,6 +46,9 @@ class StepInputs(NamedTuple):
         intrinsics: ``float32 [4]`` ``(fx, fy, cx, cy)``.
         plane_height: ``float32 []`` the ball radius.
         dt: ``float32 []`` the filter period, seconds.
+        pose_delta: ``float32 [3]`` the self-localisation's motion since the previous step in the previous
+            base frame (:func:`heatpf_jax.ego.pose_deltas`); zeros when the sequence has no ``robot_pose``.
+        pose_confidence: ``float32 []`` its confidence (:func:`heatpf_jax.ego.pose_confidences`).
     """
 
     heatmap: Float[Array, "h w"]
@@ -55,6 +58,8 @@ class StepInputs(NamedTuple):
     intrinsics: Float[Array, "4"]
     plane_height: Float[Array, ""]
     dt: Float[Array, ""]
+    pose_delta: Float[Array, "3"] | None = None
+    pose_confidence: Float[Array, ""] | None = None
 
 
 class _Piece(Protocol):

@@ -19,11 +19,14 @@ from typing import Any, NamedTuple
 from heatpf_jax import params as P
 from heatpf_jax.baselines.kalman import KalmanFilter
 from heatpf_jax.buffers import AgingBuffer, LatestOnly
+from heatpf_jax.ego import EGO_MOTIONS
 from heatpf_jax.estimate import TopFraction, TopFractionParams
 from heatpf_jax.estimate_modes import DominantMode
 from heatpf_jax.filter import Filter, FilterParams
 from heatpf_jax.injection import ExplorerParams, GaussianExplorers, RandomParticles, UniformBox, UniformExplorers
+from heatpf_jax.injection_memory import MemoryHints
 from heatpf_jax.injection_sensor import MeasurementExplorers
+from heatpf_jax.memory import NoMemory, TrackMemory
 from heatpf_jax.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
 from heatpf_jax.motion import DiffusionOnly, DiffusionParams, RandomWalk
 from heatpf_jax.motion_inertia import MassInertia
@@ -44,6 +47,7 @@ from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
 
 __all__ = [
     "BITBOTS_BOX",
+    "MEMORIES",
     "METHODS",
     "MODE_FINDERS",
     "Method",
@@ -64,6 +68,7 @@ __all__ = [
 ]
 
 SPAWNS = ("uniform", "gaussian")
+MEMORIES = ("none", "tracks")
 MODE_FINDERS = {
     "none": lambda k: NoModes(),
     "meanshift": lambda k: MeanShiftModes(max_modes=k),
@@ -101,6 +106,15 @@ class FilterOptions(NamedTuple):
         modes: multi-modal output in ``StepInfo.modes`` (:mod:`heatpf_jax.modes`): ``"none"``
             (default), ``"meanshift"``, ``"kmeans"`` or ``"gmm"`` (a Gaussian mixture fitted by EM).
         max_modes: K, the number of mode slots.
+        ego: what moves the particles, the buffer and the memory's tracks with the robot
+            (:mod:`heatpf_jax.ego`): ``"odometry"`` (default), ``"none"``, or the sequence's
+            self-localisation ``robot_pose`` weighted by ``pose_confidence`` (Olufs 3.5): ``"pose"``
+            (the particles only rotated, as the paper), ``"pose_full"`` (rotated and shifted), and
+            ``"pose_unweighted"`` / ``"pose_full_unweighted"`` (the confidence ignored).
+        memory: the long-term memory (:mod:`heatpf_jax.memory`, Olufs 3.4): ``"none"`` (default) or
+            ``"tracks"`` (a track table of ``max_tracks`` slots fed by the modes, or the estimate when
+            ``modes`` is ``"none"``, with hint particles for lost tracks).
+        max_tracks: the memory's capacity.
     """
 
     num_particles: int = 500
@@ -114,13 +128,16 @@ class FilterOptions(NamedTuple):
     knn: str = "auto"
     modes: str = "none"
     max_modes: int = 3
+    ego: str = "odometry"
+    memory: str = "none"
+    max_tracks: int = 4
 
 
 def validate_options(options: FilterOptions) -> None:
     """Raises ``ValueError`` naming the option if it is unusable."""
     if not isinstance(options, FilterOptions):
         raise TypeError(f"options: expected FilterOptions, got {type(options).__name__}")
-    for name in ("num_particles", "max_measurements", "k_max", "downscale", "max_modes"):
+    for name in ("num_particles", "max_measurements", "k_max", "downscale", "max_modes", "max_tracks"):
         value = getattr(options, name)
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ValueError(f"{name}: must be a positive integer, got {value!r}")
@@ -132,6 +149,10 @@ def validate_options(options: FilterOptions) -> None:
         raise ValueError(f"observation: must be one of {[AUTO, *OBSERVATIONS]}, got {options.observation!r}")
     if options.modes not in MODE_FINDERS:
         raise ValueError(f"modes: must be one of {list(MODE_FINDERS)}, got {options.modes!r}")
+    if options.ego not in EGO_MOTIONS:
+        raise ValueError(f"ego: must be one of {list(EGO_MOTIONS)}, got {options.ego!r}")
+    if options.memory not in MEMORIES:
+        raise ValueError(f"memory: must be one of {list(MEMORIES)}, got {options.memory!r}")
     if options.knn not in KNN_METHODS:
         raise ValueError(f"knn: must be one of {list(KNN_METHODS)}, got {options.knn!r}")
     box = tuple(options.spawn_box)
@@ -155,7 +176,20 @@ def _particle_filter(options: FilterOptions, source, observation: str = "inverse
         initial=UniformBox(box=box),
         num_particles=options.num_particles,
         modes=MODE_FINDERS[options.modes](options.max_modes),
+        ego=EGO_MOTIONS[options.ego],
+        memory=_memory(options),
     )
+
+
+def _memory(options: FilterOptions):
+    return TrackMemory(capacity=options.max_tracks) if options.memory == "tracks" else NoMemory()
+
+
+def _with_hints(model: Filter) -> Filter:
+    """``model`` with memory hints as its last injector when it has a long-term memory (Olufs 3.4)."""
+    if isinstance(model.memory, NoMemory):
+        return model
+    return model._replace(injectors=(*model.injectors, MemoryHints()))
 
 
 def _pixels(options: FilterOptions) -> PixelSource:
@@ -165,7 +199,7 @@ def _pixels(options: FilterOptions) -> PixelSource:
 def paper_filter(options: FilterOptions = FilterOptions()) -> Filter:
     """The 2019 paper's filter exactly (``--method paper``): every pixel above the threshold is a
     measurement (III-A), eq. (1), aging (III-C), a static-position random walk with odometry (III-D)."""
-    return _particle_filter(options, _pixels(options))
+    return _with_hints(_particle_filter(options, _pixels(options)))
 
 
 def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
@@ -176,7 +210,7 @@ def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     measurements beside the uniform ones (:class:`~heatpf_jax.injection_sensor.MeasurementExplorers`);
     its default params are :func:`heatmap_params`."""
     base = _particle_filter(options, _pixels(options), observation="range_aware")
-    return base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers()))
+    return _with_hints(base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers())))
 
 
 def heatmap_params(model: Filter) -> FilterParams:
@@ -200,12 +234,12 @@ def extended_filter(options: FilterOptions = FilterOptions()) -> Filter:
     Its default params are :func:`extended_params`."""
     box = tuple(float(b) for b in options.spawn_box)
     base = _particle_filter(options, _pixels(options), observation="gaussian")
-    return base._replace(
+    return _with_hints(base._replace(
         motion=MassInertia(),
         resampling=ClusterResampling(resampler=RESAMPLERS[options.resampler], correct=False),
         estimator=DominantMode(),
         injectors=(*base.injectors, RandomParticles(box=box), MeasurementExplorers()),
-    )
+    ))
 
 
 def extended_params(model: Filter) -> FilterParams:
@@ -220,7 +254,7 @@ def extended_params(model: Filter) -> FilterParams:
 def conventional_filter(options: FilterOptions = FilterOptions()) -> Filter:
     """The paper's conventional filter (IV-B): the same particle filter fed one measurement per heat map,
     the centre of the strongest image-space component."""
-    return _particle_filter(options, ClusterCentreSource())
+    return _with_hints(_particle_filter(options, ClusterCentreSource()))
 
 
 def kalman_baseline(options: FilterOptions = FilterOptions()) -> KalmanFilter:

@@ -18,6 +18,7 @@ from jax import lax
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from heatpf_jax import params as P
+from heatpf_jax.ego import pose_confidences, pose_deltas
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sequence import Sequence
 
@@ -58,6 +59,8 @@ class _ScanInputs(NamedTuple):
     has_heatmap: Bool[Array, ""]
     cam_to_base: Float[Array, "4 4"]
     odometry: Float[Array, "3"]
+    pose_delta: Float[Array, "3"] | None
+    pose_confidence: Float[Array, ""] | None
 
 
 def run_core(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
@@ -77,8 +80,14 @@ def run_core(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
             intrinsics=intrinsics,
             plane_height=plane_height,
             dt=dt,
+            pose_delta=x.pose_delta,
+            pose_confidence=x.pose_confidence,
         )
         return model.step(x.key, state, inputs, params)
+
+    # Prepared by prepare_run: robot_pose holds the pose deltas and pose_confidence theirs (None unless
+    # the model reads them).
+    has_pose = sequence.robot_pose is not None
 
     xs = _ScanInputs(
         key=jax.random.split(k_steps, num_steps),
@@ -86,6 +95,8 @@ def run_core(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
         has_heatmap=jnp.asarray(sequence.has_heatmap, bool),
         cam_to_base=jnp.asarray(sequence.cam_to_base, jnp.float32),
         odometry=jnp.asarray(sequence.odometry, jnp.float32),
+        pose_delta=jnp.asarray(sequence.robot_pose, jnp.float32) if has_pose else None,
+        pose_confidence=jnp.asarray(sequence.pose_confidence, jnp.float32) if has_pose else None,
     )
     final_state, info = lax.scan(body, model.init(k_init, params), xs)
     return RunResult(info=info, final_state=final_state)
@@ -110,8 +121,29 @@ def prepare_run(sequence: Sequence, params, model) -> tuple[Sequence, Any]:
     else:
         odometry = np.array(sequence.odometry, np.float32)
         odometry[0] = 0.0
-    # Ground truth is not an input: dropping it keeps one compilation with or without it.
-    return sequence._replace(odometry=odometry, ground_truth=None), params
+    # Ground truth and images are not inputs: dropping them keeps one compilation with or without them.
+    return sequence._replace(odometry=odometry, ground_truth=None, images=None, **_pose_inputs(sequence, model)), params
+
+
+def _pose_inputs(sequence: Sequence, model) -> dict[str, Any]:
+    """``robot_pose`` replaced by the pose deltas and ``pose_confidence`` by theirs where the model reads
+    them (:mod:`heatpf_jax.ego`); both dropped otherwise (one compilation with or without them)."""
+    if "robot_pose" not in getattr(model, "requires", ()):
+        return {"robot_pose": None, "pose_confidence": None}
+    if sequence.robot_pose is None:
+        raise ValueError(
+            "robot_pose: the sequence has no robot_pose (self-localisation), which this method's ego-motion "
+            "reads; use --set ego=odometry, or a sequence with robot_pose and pose_confidence"
+        )
+    if isinstance(sequence.robot_pose, jax.core.Tracer) or isinstance(sequence.pose_confidence, jax.core.Tracer):
+        raise ValueError("robot_pose: pose deltas are computed on the host; pass concrete arrays")
+    num_steps = np.shape(sequence.robot_pose)[0]
+    return {
+        "robot_pose": pose_deltas(np.asarray(sequence.robot_pose)).astype(np.float32),
+        "pose_confidence": pose_confidences(
+            None if sequence.pose_confidence is None else np.asarray(sequence.pose_confidence), num_steps
+        ).astype(np.float32),
+    }
 
 
 def run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:

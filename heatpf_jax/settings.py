@@ -172,7 +172,8 @@ def option_alternatives(field: str) -> list:
     from heatpf_jax.presets import FilterOptions
 
     others = {"resampler": ["residual"], "spawn": ["gaussian"], "spawn_box": [(0.0, 1.0, 0.0, 1.0)],
-              "observation": ["gaussian", "inverse_distance"], "knn": ["dense"], "modes": ["kmeans"]}
+              "observation": ["gaussian", "inverse_distance"], "knn": ["dense"], "modes": ["kmeans"],
+              "ego": ["none"], "memory": ["tracks"]}
     if field in others:
         return others[field]
     return [FilterOptions._field_defaults[field] + 1]

@@ -131,14 +131,14 @@ def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeyp
     params = SMALL_FILTER.make_params(k=2)
     key = jax.random.key(4)
     ref = hp.run(key, small_sequence, params, SMALL_FILTER).info
-    mean, cov, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    mean, cov, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
     files = list((tmp_path / "exports").iterdir())
     assert len(files) == 1
     np.testing.assert_array_equal(mean, np.asarray(ref.mean))
     np.testing.assert_array_equal(cov, np.asarray(ref.cov))
     # Loaded, not exported again: exporting now would fail.
     monkeypatch.setattr(export, "export", lambda *a, **k: (_ for _ in ()).throw(AssertionError("exported again")))
-    again, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    again, _, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
     np.testing.assert_array_equal(again, mean)
     # Another question (another model) never loads this program.
     monkeypatch.undo()
@@ -147,6 +147,6 @@ def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeyp
     assert len(list((tmp_path / "exports").iterdir())) == 2
     # A damaged file is replaced, with the same estimates.
     files[0].write_bytes(b"garbage")
-    fixed, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
+    fixed, _, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
     np.testing.assert_array_equal(fixed, mean)
     assert files[0].read_bytes() != b"garbage"

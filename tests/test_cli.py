@@ -388,20 +388,34 @@ def test_ctrl_c_exits_130_in_one_line_and_writes_nothing(tmp_path, seq_file, cap
     assert not out.exists()
 
 
-def test_run_writes_modes_csv_equal_to_the_runs_modes(tmp_path, seq_file, capsys):
-    from heatpf_jax.cli import MODES_HEADER
+def test_run_writes_modes_and_tracks_csv_equal_to_the_runs(tmp_path, seq_file, capsys):
+    from heatpf_jax.cli import MODES_HEADER, TRACKS_HEADER
 
     path, seq = seq_file
-    out, modes = tmp_path / "est.csv", tmp_path / "modes.csv"
+    out, modes, tracks = tmp_path / "est.csv", tmp_path / "modes.csv", tmp_path / "tracks.csv"
     assert main(["run", str(path), "-o", str(out), "--modes", str(out), "--method", "paper", *SMALL_ARGS]) == 2
     assert "--modes" in capsys.readouterr().err and not out.exists()  # one file cannot be both
-    assert main(["run", str(path), "-o", str(out), "--modes", str(modes), "--method", "paper", *SMALL_ARGS]) == 0
+    assert main(["run", str(path), "-o", str(out), "--tracks", str(tracks), "--method", "paper", *SMALL_ARGS]) == 2
+    assert _one_error_line(capsys) == ("heatpf: error: --tracks: the filter has no long-term memory; "
+                                       "add --set memory=tracks")
+    assert main(["run", str(path), "-o", str(out), "--modes", str(modes), "--tracks", str(tracks), "--method",
+                 "paper", *SMALL_ARGS, "--set", "memory=tracks"]) == 0
     lines = modes.read_text().splitlines()
     assert lines[0] == MODES_HEADER
     table = np.loadtxt(modes, delimiter=",", skiprows=1, ndmin=2)
-    options = SMALL_OPTIONS._replace(modes="meanshift")
+    options = SMALL_OPTIONS._replace(modes="meanshift", memory="tracks")
     model, params = hp.build("paper", options)
-    ref = hp.run(jax.random.key(0), seq, params, model).info.modes
+    info = hp.run(jax.random.key(0), seq, params, model).info
+    ref_tracks = info.tracks
+    assert tracks.read_text().splitlines()[0] == TRACKS_HEADER
+    rows = np.loadtxt(tracks, delimiter=",", skiprows=1, ndmin=2)
+    t_valid, slot = np.nonzero(np.asarray(ref_tracks.valid))
+    assert rows.shape == (len(t_valid), 7) and len(rows) > 0
+    np.testing.assert_array_equal(rows[:, 0], t_valid)
+    np.testing.assert_array_equal(rows[:, 1], np.asarray(ref_tracks.id)[t_valid, slot])
+    np.testing.assert_allclose(rows[:, 2], np.asarray(ref_tracks.age)[t_valid, slot], atol=1e-3)
+    np.testing.assert_allclose(rows[:, 3:], np.asarray(ref_tracks.mean)[t_valid, slot], atol=2e-6)
+    ref = info.modes
     valid = np.asarray(ref.valid)
     assert table.shape == (int(valid.sum()), 8)
     t, j = table[:, 0].astype(int), table[:, 1].astype(int)

@@ -114,7 +114,7 @@ def test_losses_against_numpy(rng):
     truth = rng.normal(size=(30, 2)).astype(np.float32)
     ll = rng.normal(size=30).astype(np.float32)
     info = hp.StepInfo(mean=mean, cov=None, weighted_mean=None, ess=None, num_valid=None, resampled=None,
-                       log_likelihood=ll, ancestors=None, modes=None)
+                       log_likelihood=ll, ancestors=None, modes=None, tracks=None)
     want = np.mean(np.sum((mean.astype(np.float64) - truth)[7:] ** 2, axis=-1))
     np.testing.assert_allclose(float(mse_loss(info, truth, burn_in=7)), want, rtol=1e-5)
     np.testing.assert_allclose(float(nll_loss(info, None, burn_in=4)), -np.mean(ll[4:].astype(np.float64)),

@@ -31,6 +31,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 from heatpf_jax.filter import StepInfo
 from heatpf_jax.injection import UniformBox
 from heatpf_jax.measurements import empty_measurements
+from heatpf_jax.memory import empty_tracks
 from heatpf_jax.modes import Modes
 from heatpf_jax.params import make_params, nonnegative, positive
 from heatpf_jax.pieces import StepInputs
@@ -238,5 +239,6 @@ class KalmanFilter(NamedTuple):
                 cov=state.cov[None, :2, :2],
                 valid=jnp.ones((1,), bool),
             ),
+            tracks=empty_tracks(0),
         )
         return state, info

@@ -488,6 +488,49 @@ def turn_poses(
     return poses, float(-amplitude * np.sin(phase0))
 
 
+def localisation_poses(
+    rng: np.random.Generator,
+    poses: np.ndarray,
+    dt: float,
+    *,
+    jumps_per_minute: float = 4.0,
+    jump_seconds=(1.0, 2.5),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A self-localisation's view of ``poses``: a small smooth error, and jumps while its confidence dips.
+
+    Normally the estimate is off by a slowly varying error (std about 2 cm and 0.5 degrees) and its
+    confidence is 0.85-0.98. About ``jumps_per_minute`` times a minute it loses track for 1-2.5 s
+    (Olufs et al. 3.5: "non explicit poses, like for example during the global localisation"): the
+    estimate jumps 0.3-1.0 m and 10-30 degrees away, wanders (5 cm and 2 degrees per step) and jumps
+    back at the end, while the confidence is 0.02-0.15.
+
+    Returns:
+        ``(estimate [T, 3], confidence [T], lost bool [T])``.
+    """
+    num_steps = poses.shape[0]
+    err = np.stack(
+        [0.02 * smooth_signal(rng, num_steps, dt, freqs=(0.05, 0.3)),
+         0.02 * smooth_signal(rng, num_steps, dt, freqs=(0.05, 0.3)),
+         np.deg2rad(0.5) * smooth_signal(rng, num_steps, dt, freqs=(0.05, 0.3))], axis=1)
+    confidence = 0.915 + 0.065 * smooth_signal(rng, num_steps, dt, freqs=(0.05, 0.2))
+    lost = np.zeros(num_steps, bool)
+    count = max(1, int(round(jumps_per_minute * num_steps * dt / 60.0)))
+    lo, hi = (max(1, int(round(s / dt))) for s in jump_seconds)
+    for start, stop in random_windows(rng, num_steps, count, (lo, hi), min_gap=int(round(3.0 / dt)),
+                                      start_after=int(round(3.0 / dt))):
+        length = stop - start
+        angle = rng.uniform(0.0, 2.0 * np.pi)
+        offset = np.array([np.cos(angle), np.sin(angle)]) * rng.uniform(0.3, 1.0)
+        turn = rng.choice([-1.0, 1.0]) * np.deg2rad(rng.uniform(10.0, 30.0))
+        wander = np.cumsum(rng.standard_normal((length, 3)) * np.array([0.05, 0.05, np.deg2rad(2.0)]), axis=0)
+        err[start:stop] += np.array([offset[0], offset[1], turn]) + wander
+        confidence[start:stop] = rng.uniform(0.02, 0.15, length)
+        lost[start:stop] = True
+    estimate = poses + err
+    estimate[:, 2] = np.angle(np.exp(1j * estimate[:, 2]))
+    return estimate, np.clip(confidence, 0.0, 1.0), lost
+
+
 # --- Random events ------------------------------------------------------------------------------------------------
 
 

@@ -1,0 +1,319 @@
+"""The long-term memory (Olufs et al. 3.4): a small fixed-capacity track table fed by the particle filter.
+
+The particle filter is the short-term memory: it loses an occluded ball within a few steps. The
+long-term memory keeps *tracks* of what the filter has seen: a multiple-hypothesis tracker in the
+small, with ``capacity`` slots, each a constant-velocity Kalman filter over ``(x, y, vx, vy)``:
+
+1. **predict** every track by ``dt`` (white-noise acceleration ``memory_accel_std``) and move it with the
+   robot (the ego-motion's ``tracks`` part, rotation and translation, :mod:`heatpf_jax.ego`);
+2. **candidates**: the filter's modes (``Filter.modes``; the estimate when there are none) that are
+   *observed*, i.e. have at least ``memory_min_support`` of buffered measurement weight within
+   ``memory_support_radius``: a mode of particles with nothing under it is the filter guessing, not seeing;
+3. **associate** candidates to tracks greedily by distance within the gate ``memory_gate`` (metres) and
+   update those tracks (measurement std ``memory_obs_std``); their age returns to 0;
+4. **birth**: an observed candidate far (beyond the gate) from every track opens a track in a free slot
+   (or in the oldest one's);
+5. **forget**: a track unobserved for more than ``memory_forget`` seconds (2 s in the paper) is dropped.
+
+A track is *lost* by the filter when it is confirmed (observed on ``memory_confirm`` steps or more) and
+was not observed this step; :class:`~heatpf_jax.injection_memory.MemoryHints` then injects b hint
+particles around its predicted position, spread by the track's own predicted covariance, which grows
+with its age (the paper: "an older age will result in a larger spread").
+
+Everything has fixed sizes (``capacity`` tracks, ``K`` candidates) and is jittable and vmappable.
+:class:`NoMemory` is the default: a table of capacity 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from heatpf_jax.buffers import NoParams
+from heatpf_jax.measurements import Measurements
+from heatpf_jax.motion import apply_odometry
+from heatpf_jax.params import integer, positive
+
+__all__ = [
+    "MemoryParams",
+    "NoMemory",
+    "TrackMemory",
+    "TrackTable",
+    "candidates_from",
+    "empty_tracks",
+    "lost_tracks",
+    "observed_support",
+]
+
+
+class TrackTable(NamedTuple):
+    """The memory's tracks, ``M = capacity`` slots (the state of :class:`TrackMemory`, ``StepInfo.tracks``).
+
+    Attributes:
+        id: ``int32 [M]`` track identifiers (1, 2, ...; 0 in empty slots).
+        valid: ``bool [M]`` slots holding a track.
+        mean: ``float32 [M, 4]`` ``(x, y, vx, vy)`` in the current base frame (metres, m/s).
+        cov: ``float32 [M, 4, 4]`` its covariance.
+        age: ``float32 [M]`` seconds since the track was last observed (0: observed this step).
+        hits: ``int32 [M]`` steps on which it was observed.
+        next_id: ``int32 []`` the next identifier to hand out.
+    """
+
+    id: Int[Array, " m"]
+    valid: Bool[Array, " m"]
+    mean: Float[Array, "m 4"]
+    cov: Float[Array, "m 4 4"]
+    age: Float[Array, " m"]
+    hits: Int[Array, " m"]
+    next_id: Int[Array, ""]
+
+
+def empty_tracks(capacity: int) -> TrackTable:
+    """A table of ``capacity`` empty slots."""
+    return TrackTable(
+        id=jnp.zeros((capacity,), jnp.int32),
+        valid=jnp.zeros((capacity,), bool),
+        mean=jnp.zeros((capacity, 4), jnp.float32),
+        cov=jnp.tile(jnp.eye(4, dtype=jnp.float32), (capacity, 1, 1)),
+        age=jnp.zeros((capacity,), jnp.float32),
+        hits=jnp.zeros((capacity,), jnp.int32),
+        next_id=jnp.ones((), jnp.int32),
+    )
+
+
+def lost_tracks(tracks: TrackTable, confirm: Int[Array, ""] | int) -> Bool[Array, " m"]:
+    """Tracks the filter has lost: confirmed (``hits >= confirm``) and not observed this step."""
+    return tracks.valid & (tracks.hits >= confirm) & (tracks.age > 0.0)
+
+
+def observed_support(
+    xy: Float[Array, "k 2"], buffer: Measurements, radius: Float[Array, ""]
+) -> Float[Array, " k"]:
+    """Buffered measurement weight within ``radius`` of each point: how much the filter *sees* there."""
+    d2 = jnp.sum((xy[:, None, :] - buffer.xy[None, :, :]) ** 2, axis=-1)
+    near = (d2 <= radius**2) & buffer.valid[None, :]
+    return jnp.sum(jnp.where(near, buffer.weight[None, :], 0.0), axis=1)
+
+
+def candidates_from(modes, estimate_mean: Float[Array, "2"]) -> tuple[Float[Array, "k 2"], Bool[Array, " k"]]:
+    """The memory's candidate positions: the valid modes, or the estimate alone when there are no modes."""
+    if modes.mean.shape[0] == 0:
+        return jnp.asarray(estimate_mean, jnp.float32)[None, :], jnp.ones((1,), bool)
+    return modes.mean, modes.valid
+
+
+class MemoryParams(NamedTuple):
+    """Numbers of :class:`TrackMemory`.
+
+    Attributes:
+        memory_forget: seconds a track survives unobserved (Olufs et al.: 2 s).
+        memory_gate: association gate, metres.
+        memory_accel_std: the tracks' white-noise acceleration, m/s^2.
+        memory_obs_std: std of a candidate's position, metres.
+        memory_spawn_speed_std: prior std of a new track's velocity, m/s.
+        memory_min_support: buffered weight near a mode for it to count as observed.
+        memory_support_radius: radius of that neighbourhood, metres.
+        memory_confirm: observations before a track can be lost (and get hints).
+    """
+
+    memory_forget: float = 2.0
+    memory_gate: float = 0.75
+    memory_accel_std: float = 2.0
+    memory_obs_std: float = 0.1
+    memory_spawn_speed_std: float = 1.0
+    memory_min_support: float = 1.0
+    memory_support_radius: float = 0.3
+    memory_confirm: int = 3
+
+
+def _cv_matrices(dt, accel_std):
+    f = jnp.eye(4, dtype=jnp.float32).at[0, 2].set(dt).at[1, 3].set(dt)
+    g = jnp.array([[0.5, 0.0], [0.0, 0.5], [1.0, 0.0], [0.0, 1.0]], jnp.float32) * jnp.array(
+        [[dt * dt], [dt * dt], [dt], [dt]], jnp.float32
+    )
+    q = accel_std**2 * (g @ g.T)
+    return f, q
+
+
+def _rotation(theta):
+    c, s = jnp.cos(theta), jnp.sin(theta)
+    return jnp.array([[c, s], [-s, c]], jnp.float32)  # R(theta)^T: the previous frame's vectors in the new one
+
+
+def predict_tracks(tracks: TrackTable, dt, ego: Float[Array, "3"], accel_std) -> TrackTable:
+    """Constant-velocity prediction by ``dt``, then the ego-motion (positions moved, vectors turned)."""
+    f, q = _cv_matrices(dt, accel_std)
+    mean = tracks.mean @ f.T
+    cov = jnp.einsum("ij,mjk,lk->mil", f, tracks.cov, f) + q[None]
+    r = _rotation(ego[2])
+    j = jnp.zeros((4, 4), jnp.float32).at[:2, :2].set(r).at[2:, 2:].set(r)
+    xy = apply_odometry(mean[:, :2], ego)
+    vel = mean[:, 2:] @ r.T
+    cov = jnp.einsum("ij,mjk,lk->mil", j, cov, j)
+    return tracks._replace(mean=jnp.concatenate([xy, vel], axis=1), cov=cov)
+
+
+def _associate(track_xy, track_valid, cand_xy, cand_ok, gate):
+    """Greedy nearest-pair assignment within ``gate``: ``track_of[k]`` (-1: none) for every candidate."""
+    d = jnp.sqrt(jnp.sum((cand_xy[:, None, :] - track_xy[None, :, :]) ** 2, axis=-1) + 1e-12)
+    d = jnp.where(cand_ok[:, None] & track_valid[None, :] & (d <= gate), d, jnp.inf)
+    k_count, m = d.shape
+    track_of = jnp.full((k_count,), -1, jnp.int32)
+    for _ in range(min(k_count, m)):  # static and small
+        flat = jnp.argmin(d)
+        best = d.reshape(-1)[flat]
+        i, j = flat // m, flat % m
+        ok = jnp.isfinite(best)
+        track_of = jnp.where(ok, track_of.at[i].set(j.astype(jnp.int32)), track_of)
+        d = jnp.where(ok, d.at[i, :].set(jnp.inf).at[:, j].set(jnp.inf), d)
+    return track_of
+
+
+def _kalman_update(mean, cov, z, obs_std):
+    h = jnp.zeros((2, 4), jnp.float32).at[0, 0].set(1.0).at[1, 1].set(1.0)
+    s = h @ cov @ h.T + obs_std**2 * jnp.eye(2, dtype=jnp.float32)
+    gain = jnp.linalg.solve(s, h @ cov).T  # cov h^T s^-1 (s symmetric)
+    mean = mean + gain @ (z - h @ mean)
+    i_kh = jnp.eye(4, dtype=jnp.float32) - gain @ h
+    cov = i_kh @ cov @ i_kh.T + obs_std**2 * gain @ gain.T  # Joseph form: stays symmetric positive
+    return mean, cov
+
+
+def update_tracks(
+    tracks: TrackTable,
+    cand_xy: Float[Array, "k 2"],
+    observed: Bool[Array, " k"],
+    dt,
+    ego: Float[Array, "3"],
+    params: MemoryParams,
+) -> TrackTable:
+    """One memory step: predict, associate, update, give birth, forget (see the module docstring)."""
+    tracks = predict_tracks(tracks, dt, ego, params.memory_accel_std)
+    track_of = _associate(tracks.mean[:, :2], tracks.valid, cand_xy, observed, params.memory_gate)
+    m = tracks.valid.shape[0]
+    # Updates: each track takes at most one candidate.
+    hit = jnp.zeros((m,), bool)
+    z_of = jnp.zeros((m, 2), jnp.float32)
+    for k in range(cand_xy.shape[0]):
+        j = track_of[k]
+        take = j >= 0
+        jj = jnp.maximum(j, 0)
+        hit = jnp.where(take, hit.at[jj].set(True), hit)
+        z_of = jnp.where(take, z_of.at[jj].set(cand_xy[k]), z_of)
+    new_mean, new_cov = jax.vmap(_kalman_update, in_axes=(0, 0, 0, None))(
+        tracks.mean, tracks.cov, z_of, params.memory_obs_std
+    )
+    mean = jnp.where(hit[:, None], new_mean, tracks.mean)
+    cov = jnp.where(hit[:, None, None], new_cov, tracks.cov)
+    age = jnp.where(hit, 0.0, tracks.age + dt)
+    hits = tracks.hits + hit.astype(jnp.int32)
+    tracks = tracks._replace(mean=mean, cov=cov, age=age, hits=hits)
+    # Births: observed candidates that no track took and that lie outside every track's gate.
+    spawn_cov = jnp.diag(
+        jnp.stack([params.memory_obs_std**2, params.memory_obs_std**2,
+                   params.memory_spawn_speed_std**2, params.memory_spawn_speed_std**2])
+    ).astype(jnp.float32)
+    for k in range(cand_xy.shape[0]):
+        d = jnp.sqrt(jnp.sum((tracks.mean[:, :2] - cand_xy[k][None, :]) ** 2, axis=-1) + 1e-12)
+        clear = ~jnp.any(tracks.valid & (d <= params.memory_gate))
+        # A free slot first, else the one unobserved longest; never one observed this step.
+        priority = jnp.where(tracks.valid, jnp.where(hit, -jnp.inf, tracks.age), jnp.inf)
+        slot = jnp.argmax(priority)
+        born = observed[k] & (track_of[k] < 0) & clear & (priority[slot] > -jnp.inf)
+        hit = hit.at[slot].set(hit[slot] | born)
+        new = TrackTable(
+            id=tracks.id.at[slot].set(tracks.next_id),
+            valid=tracks.valid.at[slot].set(True),
+            mean=tracks.mean.at[slot].set(jnp.concatenate([cand_xy[k], jnp.zeros((2,), jnp.float32)])),
+            cov=tracks.cov.at[slot].set(spawn_cov),
+            age=tracks.age.at[slot].set(0.0),
+            hits=tracks.hits.at[slot].set(1),
+            next_id=tracks.next_id + 1,
+        )
+        tracks = jax.tree.map(lambda a, b, born=born: jnp.where(born, a, b), new, tracks)
+    # Forget.
+    keep = tracks.valid & (tracks.age <= params.memory_forget)
+    return tracks._replace(
+        valid=keep,
+        id=jnp.where(keep, tracks.id, 0),
+        hits=jnp.where(keep, tracks.hits, 0),
+    )
+
+
+@dataclass(frozen=True)
+class NoMemory:
+    """No long-term memory (the default): a track table of capacity 0."""
+
+    capacity: int = 0
+
+    def default_params(self) -> NoParams:
+        return NoParams()
+
+    def properties(self) -> NoParams:
+        return NoParams()
+
+    def validate(self) -> None:
+        pass
+
+    def init(self) -> TrackTable:
+        return empty_tracks(0)
+
+    def update(self, tracks, modes, estimate_mean, buffer, ego, dt, params) -> TrackTable:
+        return tracks
+
+    def lost(self, tracks: TrackTable, params) -> Bool[Array, " m"]:
+        return tracks.valid
+
+
+@dataclass(frozen=True)
+class TrackMemory:
+    """The long-term memory of Olufs et al. (3.4) with ``capacity`` track slots (see the module docstring)."""
+
+    capacity: int = 4
+
+    def default_params(self) -> MemoryParams:
+        return MemoryParams()
+
+    def properties(self) -> MemoryParams:
+        return MemoryParams(
+            memory_forget=positive(),
+            memory_gate=positive(),
+            memory_accel_std=positive(),
+            memory_obs_std=positive(),
+            memory_spawn_speed_std=positive(),
+            memory_min_support=positive(trainable=False),
+            memory_support_radius=positive(trainable=False),
+            memory_confirm=integer(1, 1000),
+        )
+
+    def validate(self) -> None:
+        c = self.capacity
+        if not isinstance(c, int) or isinstance(c, bool) or c < 1:
+            raise ValueError(f"max_tracks: must be a positive integer, got {c!r}")
+
+    def init(self) -> TrackTable:
+        return empty_tracks(self.capacity)
+
+    def update(
+        self,
+        tracks: TrackTable,
+        modes,
+        estimate_mean: Float[Array, "2"],
+        buffer: Measurements,
+        ego: Float[Array, "3"],
+        dt,
+        params: MemoryParams,
+    ) -> TrackTable:
+        """One step of the memory from this step's modes (or estimate), buffer and ego-motion."""
+        cand_xy, cand_valid = candidates_from(modes, estimate_mean)
+        support = observed_support(cand_xy, buffer, params.memory_support_radius)
+        observed = cand_valid & (support >= params.memory_min_support)
+        return update_tracks(tracks, cand_xy, observed, jnp.asarray(dt, jnp.float32), ego, params)
+
+    def lost(self, tracks: TrackTable, params: MemoryParams) -> Bool[Array, " m"]:
+        """The tracks the filter has lost this step (they get hints)."""
+        return lost_tracks(tracks, params.memory_confirm)

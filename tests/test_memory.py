@@ -1,0 +1,180 @@
+"""The long-term memory (Olufs et al. 3.4): Kalman prediction and update against NumPy, association,
+birth, forgetting, lost tracks, and hint particles."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax.injection import InjectionContext
+from heatpf_jax.injection_memory import HintParams, MemoryHints
+from heatpf_jax.measurements import Measurements
+from heatpf_jax.memory import (
+    MemoryParams,
+    TrackMemory,
+    TrackTable,
+    empty_tracks,
+    lost_tracks,
+    observed_support,
+    predict_tracks,
+    update_tracks,
+)
+from heatpf_jax.motion import Particles, RandomWalk
+from heatpf_jax.presets import FilterOptions, build
+from heatpf_jax.sim.scenarios import simulate_with_info
+
+PARAMS = MemoryParams()
+_update = jax.jit(update_tracks)  # one compilation for the tests below (3 slots, 2 candidates)
+
+
+def _table(rng, m=3):
+    a = rng.normal(size=(m, 4, 4))
+    return TrackTable(
+        id=jnp.arange(1, m + 1, dtype=jnp.int32),
+        valid=jnp.ones((m,), bool),
+        mean=jnp.asarray(rng.normal(size=(m, 4)), jnp.float32),
+        cov=jnp.asarray(a @ a.transpose(0, 2, 1) + np.eye(4), jnp.float32),
+        age=jnp.zeros((m,), jnp.float32),
+        hits=jnp.full((m,), 5, jnp.int32),
+        next_id=jnp.int32(m + 1),
+    )
+
+
+def test_prediction_against_numpy(rng):
+    """Constant velocity for dt, white-noise acceleration, then the robot's motion: NumPy in float64."""
+    tracks = _table(rng)
+    dt, accel, ego = 0.1, 1.5, np.array([0.2, -0.1, 0.4])
+    got = predict_tracks(tracks, jnp.float32(dt), jnp.asarray(ego, jnp.float32), jnp.float32(accel))
+    f = np.eye(4)
+    f[0, 2] = f[1, 3] = dt
+    g = np.array([[dt**2 / 2, 0], [0, dt**2 / 2], [dt, 0], [0, dt]])
+    q = accel**2 * g @ g.T
+    c, s = np.cos(ego[2]), np.sin(ego[2])
+    rot_t = np.array([[c, s], [-s, c]])  # world vectors of the old base frame, seen from the new one
+    j = np.zeros((4, 4))
+    j[:2, :2] = j[2:, 2:] = rot_t
+    for i in range(3):
+        m = f @ np.asarray(tracks.mean[i], np.float64)
+        p = f @ np.asarray(tracks.cov[i], np.float64) @ f.T + q
+        want_mean = np.concatenate([rot_t @ (m[:2] - ego[:2]), rot_t @ m[2:]])
+        np.testing.assert_allclose(got.mean[i], want_mean, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(got.cov[i], j @ p @ j.T, rtol=1e-4, atol=1e-5)
+
+
+def test_update_against_numpy_kalman(rng):
+    tracks = _table(rng, 3)
+    tracks = tracks._replace(age=tracks.age.at[2].set(0.5))  # the slot a new track may replace: unobserved longest
+    z = np.array([[0.3, -0.2], [5.0, 5.0]])  # the second is outside every gate
+    tracks = tracks._replace(mean=tracks.mean.at[0, :2].set(jnp.array([0.25, -0.1])))
+    params = jax.tree.map(jnp.asarray, PARAMS._replace(memory_gate=1.0))
+    got = _update(tracks, jnp.asarray(z, jnp.float32), jnp.array([True, True]), jnp.float32(0.0),
+                        jnp.zeros(3, jnp.float32), params)
+    m, p = np.asarray(tracks.mean[0], np.float64), np.asarray(tracks.cov[0], np.float64)
+    h = np.eye(2, 4)
+    s = h @ p @ h.T + params.memory_obs_std**2 * np.eye(2)
+    k = p @ h.T @ np.linalg.inv(s)
+    np.testing.assert_allclose(got.mean[0], m + k @ (z[0] - h @ m), rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(got.cov[0], p - k @ s @ k.T, rtol=1e-3, atol=1e-4)
+    assert float(got.age[0]) == 0.0 and int(got.hits[0]) == 6
+    # The far candidate could not take a free slot (all full) and is not within a gate: it replaced the
+    # track unobserved longest (track 3) as a new track with a new id.
+    assert int(got.id[2]) == 4 and np.allclose(got.mean[2], [5.0, 5.0, 0.0, 0.0]) and int(got.next_id) == 5
+    assert int(got.id[1]) == 2 and float(got.age[1]) == 0.0  # not observed, but dt = 0
+
+
+def test_association_birth_forgetting_and_lost():
+    params = PARAMS._replace(memory_forget=0.25, memory_confirm=2)
+    params = jax.tree.map(jnp.asarray, params)
+    tracks = empty_tracks(3)
+    dt, ego = jnp.float32(0.1), jnp.zeros(3, jnp.float32)
+    ball, other = np.array([2.0, 0.0]), np.array([3.0, 1.0])
+    both = jnp.asarray(np.stack([ball, other]), jnp.float32)
+    for _ in range(3):  # two objects seen three times: two confirmed tracks, ids 1 and 2
+        tracks = _update(tracks, both, jnp.array([True, True]), dt, ego, params)
+    assert sorted(np.asarray(tracks.id[tracks.valid]).tolist()) == [1, 2]
+    assert not np.any(np.asarray(lost_tracks(tracks, 2)))
+    # Only the ball is seen now (its candidate listed second): the other track ages and is lost ...
+    swapped = jnp.asarray(np.stack([other + 10.0, ball + 0.05]), jnp.float32)
+    tracks = _update(tracks, swapped, jnp.array([False, True]), dt, ego, params)
+    lost = np.asarray(lost_tracks(tracks, 2))
+    ids = np.asarray(tracks.id)
+    assert ids[lost].tolist() == [2] and np.asarray(tracks.hits)[ids == 1].item() == 4
+    # ... and is forgotten once unobserved for more than memory_forget seconds.
+    for _ in range(3):
+        tracks = _update(tracks, swapped, jnp.array([False, True]), dt, ego, params)
+    assert np.asarray(tracks.id[tracks.valid]).tolist() == [1]
+
+
+def test_observed_support_against_brute_force(rng):
+    m = 50
+    buf = Measurements(
+        xy=jnp.asarray(rng.uniform(0, 3, (m, 2)), jnp.float32),
+        weight=jnp.asarray(rng.uniform(0, 1, m), jnp.float32),
+        valid=jnp.asarray(rng.uniform(size=m) < 0.7),
+        footprint=jnp.zeros((m, 2, 2), jnp.float32),
+    )
+    xy = rng.uniform(0, 3, (4, 2))
+    got = observed_support(jnp.asarray(xy, jnp.float32), buf, jnp.float32(0.5))
+    want = [sum(float(buf.weight[j]) for j in range(m)
+                if bool(buf.valid[j]) and np.linalg.norm(np.asarray(buf.xy[j]) - x) <= 0.5) for x in xy]
+    np.testing.assert_allclose(got, want, rtol=1e-5)
+
+
+def test_hints_land_around_lost_tracks_with_their_spread():
+    n = 4000
+    tracks = empty_tracks(3)
+    cov = jnp.diag(jnp.array([0.04, 0.01, 1.0, 1.0], jnp.float32))
+    tracks = tracks._replace(
+        valid=jnp.array([True, True, True]),
+        mean=jnp.array([[3.0, 1.0, 0, 0], [1.0, -2.0, 0, 0], [9.0, 9.0, 0, 0]], jnp.float32),
+        cov=jnp.stack([cov, cov, cov]),
+    )
+    lost = jnp.array([True, True, False])
+    rank = jnp.asarray(np.random.default_rng(0).permutation(n), jnp.int32)
+    context = InjectionContext(
+        particles=Particles(xy=jnp.full((n, 2), 50.0, jnp.float32)),
+        log_weights=jnp.full((n,), -np.log(n), jnp.float32),
+        rank=rank, used=jnp.int32(100), estimate=None, motion=RandomWalk(),
+        motion_params=RandomWalk().default_params(), memory=tracks, memory_lost=lost,
+    )
+    out = MemoryHints().inject(jax.random.key(0), context, HintParams(hint_fraction=0.1, hint_std=0.1))
+    xy = np.asarray(out.particles.xy)
+    moved = np.any(xy != 50.0, axis=1)
+    assert moved.sum() == 800 and int(out.used) == 900
+    # The hints took the lowest-support free slots: ranks n - 900 .. n - 101.
+    r = np.asarray(rank)
+    assert np.all((r[moved] >= n - 900) & (r[moved] < n - 100))
+    for centre, var in (([3.0, 1.0], [0.05, 0.02]), ([1.0, -2.0], [0.05, 0.02])):
+        near = xy[moved & (np.linalg.norm(xy - centre, axis=1) < 1.5)]
+        assert len(near) == 400
+        np.testing.assert_allclose(near.mean(0), centre, atol=0.04)
+        np.testing.assert_allclose(near.var(0), var, rtol=0.2)
+
+
+def test_filter_with_memory_runs_vmaps_and_reports_tracks():
+    seq, truth_info = simulate_with_info("occlusion", 1, num_steps=60, shrink=4)
+    m = build("paper", FilterOptions(num_particles=128, max_measurements=128, memory="tracks", max_tracks=3))
+    assert isinstance(m.model.memory, TrackMemory) and m.model.injectors[-1].name == "hints"
+    batch = hp.stack_params([m.params, m.model.make_params(memory_gate=0.5)])
+    info = jax.vmap(lambda p: hp.run(jax.random.key(0), seq, p, m.model).info)(batch)
+    res_info = jax.tree.map(lambda x: x[0], info)
+    tracks = res_info.tracks
+    assert tracks.valid.shape == (60, 3)
+    visible = truth_info["visible"]
+    # While the ball is seen, one track follows it.
+    ids = np.asarray(tracks.id)
+    seen = np.flatnonzero(visible[10:]) + 10
+    nearest = np.min(np.where(np.asarray(tracks.valid)[seen],
+                              np.linalg.norm(np.asarray(tracks.mean)[seen, :, :2] - seq.ground_truth[seen, None],
+                                             axis=-1), np.inf), axis=1)
+    filter_error = np.linalg.norm(np.asarray(res_info.mean)[seen] - seq.ground_truth[seen], axis=1)
+    assert np.median(nearest) < 1.5 * np.median(filter_error) + 0.05, (np.median(nearest), np.median(filter_error))
+    assert np.all(ids[tracks.valid] > 0)
+
+
+def test_memory_options_are_checked():
+    with pytest.raises(ValueError, match="^memory: must be one of"):
+        build("paper", FilterOptions(memory="mht"))
+    with pytest.raises(ValueError, match="^max_tracks: must be a positive integer"):
+        build("paper", FilterOptions(memory="tracks", max_tracks=0))
