@@ -8,6 +8,7 @@ from heatpf_jax.baselines import KalmanFilter, KalmanParams, KalmanState
 from heatpf_jax.buffers import AgingBuffer, AgingParams, LatestOnly
 from heatpf_jax.camera import camera_pose, ground_jacobian, pixel_ray, project_pixel, project_points
 from heatpf_jax.clustering import Clusters, mean_shift
+from heatpf_jax.ego import EgoMotion, LocalisationEgo, NoEgo, OdometryEgo, pose_confidences, pose_deltas
 from heatpf_jax.estimate import (
     Estimate,
     TopFraction,
@@ -33,6 +34,7 @@ from heatpf_jax.injection import (
     spawn_uniform,
     take_slots,
 )
+from heatpf_jax.injection_memory import HintParams, MemoryHints
 from heatpf_jax.injection_sensor import MeasurementExplorers, MeasurementParams, sample_measurements
 from heatpf_jax.knn import k_nearest_blocked
 from heatpf_jax.measurements import (
@@ -44,6 +46,7 @@ from heatpf_jax.measurements import (
     project_heatmap,
     update_buffer,
 )
+from heatpf_jax.memory import MemoryParams, NoMemory, TrackMemory, TrackTable
 from heatpf_jax.modes import (
     GaussianMixtureModes,
     KMeansModes,
@@ -150,6 +153,18 @@ __all__ = [
     "MassInertiaParams",
     "MeanShiftModes",
     "MeasurementExplorers",
+    "HintParams",
+    "MemoryHints",
+    "MemoryParams",
+    "NoMemory",
+    "TrackMemory",
+    "TrackTable",
+    "EgoMotion",
+    "LocalisationEgo",
+    "NoEgo",
+    "OdometryEgo",
+    "pose_confidences",
+    "pose_deltas",
     "MeasurementParams",
     "Measurements",
     "Method",
