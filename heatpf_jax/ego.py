@@ -17,8 +17,8 @@ applied to the memory's tracks (:mod:`heatpf_jax.memory`):
   translation for the tracks. It needs the sequence keys ``robot_pose`` (and ``pose_confidence``, 1
   where absent): :func:`heatpf_jax.rollout.prepare_run` refuses a sequence without them.
 
-The pose delta itself is computed on the host, in float64, by :func:`pose_deltas`: poses in a world frame
-can be large numbers, and their difference loses nothing there.
+The pose delta itself is computed on the host, in float64, by :func:`pose_deltas` where the poses are
+concrete: poses in a world frame can be large numbers, and their difference loses nothing there.
 """
 
 from __future__ import annotations
@@ -47,38 +47,37 @@ class EgoMotion(NamedTuple):
     tracks: Float[Array, "3"]
 
 
-def pose_deltas(robot_pose: np.ndarray) -> np.ndarray:
+def pose_deltas(robot_pose, xp=np):
     """The motion between successive poses in the previous base frame, like odometry (row 0 zero).
 
     Args:
-        robot_pose: ``float64 [T, 3]`` the base's ``(x, y, theta)`` in a world frame.
+        robot_pose: ``[T, 3]`` the base's ``(x, y, theta)`` in a world frame.
+        xp: ``numpy`` (default: float64 on the host, exact for poses far from the world origin) or
+            ``jax.numpy`` (traced poses, e.g. sequences under ``vmap``; in float32).
 
     Returns:
-        ``float64 [T, 3]``: ``(R(theta_{t-1})^T (p_t - p_{t-1}), wrap(theta_t - theta_{t-1}))``.
+        ``[T, 3]``: ``(R(theta_{t-1})^T (p_t - p_{t-1}), wrap(theta_t - theta_{t-1}))``.
     """
-    pose = np.asarray(robot_pose, np.float64)
-    delta = np.zeros_like(pose)
-    if pose.shape[0] > 1:
-        d = pose[1:, :2] - pose[:-1, :2]
-        c, s = np.cos(pose[:-1, 2]), np.sin(pose[:-1, 2])
-        delta[1:, 0] = c * d[:, 0] + s * d[:, 1]
-        delta[1:, 1] = -s * d[:, 0] + c * d[:, 1]
-        delta[1:, 2] = np.angle(np.exp(1j * (pose[1:, 2] - pose[:-1, 2])))
-    return delta
+    pose = xp.asarray(robot_pose, xp.float64 if xp is np else xp.float32)
+    d = pose[1:, :2] - pose[:-1, :2]
+    c, s = xp.cos(pose[:-1, 2]), xp.sin(pose[:-1, 2])
+    dth = pose[1:, 2] - pose[:-1, 2]
+    rows = xp.stack(
+        [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], xp.arctan2(xp.sin(dth), xp.cos(dth))], axis=1
+    )
+    return xp.concatenate([xp.zeros((1, 3), rows.dtype), rows], axis=0)
 
 
-def pose_confidences(confidence: np.ndarray | None, num_steps: int) -> np.ndarray:
+def pose_confidences(confidence, num_steps: int, xp=np):
     """The confidence of each step's pose delta: the lower of its two poses' (1 without confidences).
 
     A delta is only as trustworthy as the worse of the poses it is taken between: a localisation that
     jumps away and back is distrusted on both jumps.
     """
     if confidence is None:
-        return np.ones(num_steps, np.float64)
-    conf = np.asarray(confidence, np.float64)
-    out = conf.copy()
-    out[1:] = np.minimum(conf[1:], conf[:-1])
-    return out
+        return xp.ones(num_steps, xp.float64 if xp is np else xp.float32)
+    conf = xp.asarray(confidence)
+    return xp.concatenate([conf[:1], xp.minimum(conf[1:], conf[:-1])])
 
 
 @dataclass(frozen=True)

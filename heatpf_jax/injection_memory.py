@@ -49,9 +49,21 @@ def _chol2(cov):
 
 @dataclass(frozen=True)
 class MemoryHints:
-    """Hint particles for the tracks of :class:`~heatpf_jax.memory.TrackMemory` that the filter has lost."""
+    """Hint particles for the tracks of :class:`~heatpf_jax.memory.TrackMemory` that the filter has lost.
 
+    Attributes:
+        max_hinted: at most this many lost tracks get hints each step, those observed on most steps
+            (1 by default: a filter that follows one ball hints the track it followed longest, not the
+            false positives it visited; raise it to follow several objects, as Olufs et al. do).
+        name: the injector's name.
+    """
+
+    max_hinted: int = 1
     name: str = "hints"
+
+    def validate(self) -> None:
+        if not isinstance(self.max_hinted, int) or isinstance(self.max_hinted, bool) or self.max_hinted < 1:
+            raise ValueError(f"max_hinted: must be a positive integer, got {self.max_hinted!r}")
 
     def default_params(self) -> HintParams:
         return HintParams()
@@ -66,6 +78,10 @@ class MemoryHints:
         n = context.log_weights.shape[0]
         per_track = explorer_count(params.hint_fraction, n)
         lost = context.memory_lost
+        if self.max_hinted < lost.shape[0]:  # only the lost tracks observed most often
+            order = jnp.argsort(-jnp.where(lost, tracks.hits, -1), stable=True)
+            rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
+            lost = lost & (rank < self.max_hinted)
         num_lost = jnp.sum(lost.astype(jnp.int32))
         count = jnp.minimum(per_track * num_lost, n - context.used)
         mask = take_slots(context.rank, context.used, count)

@@ -11,14 +11,17 @@ small, with ``capacity`` slots, each a constant-velocity Kalman filter over ``(x
    ``memory_support_radius``: a mode of particles with nothing under it is the filter guessing, not seeing;
 3. **associate** candidates to tracks greedily by distance within the gate ``memory_gate`` (metres) and
    update those tracks (measurement std ``memory_obs_std``); their age returns to 0;
-4. **birth**: an observed candidate far (beyond the gate) from every track opens a track in a free slot
+4. **re-detect**: a confirmed track no candidate took looks for buffered measurements near its prediction
+   itself (:func:`redetect`; the paper: the memory "allows to re-detect vanished objects");
+5. **birth**: an observed candidate far (beyond the gate) from every track opens a track in a free slot
    (or in the oldest one's);
-5. **forget**: a track unobserved for more than ``memory_forget`` seconds (2 s in the paper) is dropped.
+6. **forget**: a track unobserved for more than ``memory_forget`` seconds (2 s in the paper) is dropped.
 
 A track is *lost* by the filter when it is confirmed (observed on ``memory_confirm`` steps or more) and
-was not observed this step; :class:`~heatpf_jax.injection_memory.MemoryHints` then injects b hint
-particles around its predicted position, spread by the track's own predicted covariance, which grows
-with its age (the paper: "an older age will result in a larger spread").
+no candidate of the filter's was associated to it this step (re-detected or not);
+:class:`~heatpf_jax.injection_memory.MemoryHints` then injects b hint particles around its position,
+spread by the track's own covariance, which grows with its age (the paper: "an older age will result in
+a larger spread") and shrinks again when the memory re-detects it.
 
 Everything has fixed sizes (``capacity`` tracks, ``K`` candidates) and is jittable and vmappable.
 :class:`NoMemory` is the default: a table of capacity 0.
@@ -60,6 +63,8 @@ class TrackTable(NamedTuple):
         cov: ``float32 [M, 4, 4]`` its covariance.
         age: ``float32 [M]`` seconds since the track was last observed (0: observed this step).
         hits: ``int32 [M]`` steps on which it was observed.
+        found: ``bool [M]`` observed this step by the filter (a candidate was associated to it); a track
+            the memory re-detected on its own is not found.
         next_id: ``int32 []`` the next identifier to hand out.
     """
 
@@ -69,6 +74,7 @@ class TrackTable(NamedTuple):
     cov: Float[Array, "m 4 4"]
     age: Float[Array, " m"]
     hits: Int[Array, " m"]
+    found: Bool[Array, " m"]
     next_id: Int[Array, ""]
 
 
@@ -81,13 +87,14 @@ def empty_tracks(capacity: int) -> TrackTable:
         cov=jnp.tile(jnp.eye(4, dtype=jnp.float32), (capacity, 1, 1)),
         age=jnp.zeros((capacity,), jnp.float32),
         hits=jnp.zeros((capacity,), jnp.int32),
+        found=jnp.zeros((capacity,), bool),
         next_id=jnp.ones((), jnp.int32),
     )
 
 
 def lost_tracks(tracks: TrackTable, confirm: Int[Array, ""] | int) -> Bool[Array, " m"]:
-    """Tracks the filter has lost: confirmed (``hits >= confirm``) and not observed this step."""
-    return tracks.valid & (tracks.hits >= confirm) & (tracks.age > 0.0)
+    """Tracks the filter has lost: confirmed (``hits >= confirm``) and not found by the filter this step."""
+    return tracks.valid & (tracks.hits >= confirm) & ~tracks.found
 
 
 def observed_support(
@@ -118,6 +125,7 @@ class MemoryParams(NamedTuple):
         memory_min_support: buffered weight near a mode for it to count as observed.
         memory_support_radius: radius of that neighbourhood, metres.
         memory_confirm: observations before a track can be lost (and get hints).
+        memory_redetect_sigmas: Mahalanobis radius in which the memory re-detects a lost track itself.
     """
 
     memory_forget: float = 2.0
@@ -128,6 +136,7 @@ class MemoryParams(NamedTuple):
     memory_min_support: float = 1.0
     memory_support_radius: float = 0.3
     memory_confirm: int = 3
+    memory_redetect_sigmas: float = 3.0
 
 
 def _cv_matrices(dt, accel_std):
@@ -183,6 +192,30 @@ def _kalman_update(mean, cov, z, obs_std):
     return mean, cov
 
 
+def redetect(
+    tracks: TrackTable, lost: Bool[Array, " m"], buffer: Measurements, params: "MemoryParams"
+) -> tuple[Bool[Array, " m"], Float[Array, "m 2"]]:
+    """The memory re-detects lost tracks on its own (Olufs et al.: "the long-term memory allows to re-detect
+    vanished objects"): buffered measurements within ``memory_redetect_sigmas`` Mahalanobis distance of a
+    lost track's predicted position (covariance ``P_xy + memory_obs_std^2 I``) with a summed weight of
+    at least ``memory_min_support`` re-detect it at their weighted centroid.
+
+    Returns:
+        ``(redetected [M], centroid [M, 2])``.
+    """
+    cov = tracks.cov[:, :2, :2] + params.memory_obs_std**2 * jnp.eye(2, dtype=jnp.float32)[None]
+    a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    det = jnp.maximum(a * c - b * b, 1e-12)
+    dx = buffer.xy[None, :, 0] - tracks.mean[:, None, 0]
+    dy = buffer.xy[None, :, 1] - tracks.mean[:, None, 1]
+    d2 = (c[:, None] * dx * dx - 2.0 * b[:, None] * dx * dy + a[:, None] * dy * dy) / det[:, None]
+    near = (d2 <= params.memory_redetect_sigmas**2) & buffer.valid[None, :] & lost[:, None]
+    w = jnp.where(near, buffer.weight[None, :], 0.0)
+    support = jnp.sum(w, axis=1)
+    centroid = (w @ buffer.xy) / jnp.where(support > 0, support, 1.0)[:, None]
+    return lost & (support >= params.memory_min_support), centroid
+
+
 def update_tracks(
     tracks: TrackTable,
     cand_xy: Float[Array, "k 2"],
@@ -190,8 +223,12 @@ def update_tracks(
     dt,
     ego: Float[Array, "3"],
     params: MemoryParams,
+    buffer: Measurements | None = None,
 ) -> TrackTable:
-    """One memory step: predict, associate, update, give birth, forget (see the module docstring)."""
+    """One memory step: predict, associate, update, re-detect, give birth, forget (see the module docstring).
+
+    Without a ``buffer`` nothing is re-detected.
+    """
     tracks = predict_tracks(tracks, dt, ego, params.memory_accel_std)
     track_of = _associate(tracks.mean[:, :2], tracks.valid, cand_xy, observed, params.memory_gate)
     m = tracks.valid.shape[0]
@@ -204,6 +241,11 @@ def update_tracks(
         jj = jnp.maximum(j, 0)
         hit = jnp.where(take, hit.at[jj].set(True), hit)
         z_of = jnp.where(take, z_of.at[jj].set(cand_xy[k]), z_of)
+    found = hit
+    if buffer is not None:
+        again, centroid = redetect(tracks, tracks.valid & ~hit & (tracks.hits >= params.memory_confirm), buffer, params)
+        z_of = jnp.where(again[:, None], centroid, z_of)
+        hit = hit | again
     new_mean, new_cov = jax.vmap(_kalman_update, in_axes=(0, 0, 0, None))(
         tracks.mean, tracks.cov, z_of, params.memory_obs_std
     )
@@ -211,7 +253,7 @@ def update_tracks(
     cov = jnp.where(hit[:, None, None], new_cov, tracks.cov)
     age = jnp.where(hit, 0.0, tracks.age + dt)
     hits = tracks.hits + hit.astype(jnp.int32)
-    tracks = tracks._replace(mean=mean, cov=cov, age=age, hits=hits)
+    tracks = tracks._replace(mean=mean, cov=cov, age=age, hits=hits, found=found)
     # Births: observed candidates that no track took and that lie outside every track's gate.
     spawn_cov = jnp.diag(
         jnp.stack([params.memory_obs_std**2, params.memory_obs_std**2,
@@ -232,6 +274,7 @@ def update_tracks(
             cov=tracks.cov.at[slot].set(spawn_cov),
             age=tracks.age.at[slot].set(0.0),
             hits=tracks.hits.at[slot].set(1),
+            found=tracks.found.at[slot].set(True),
             next_id=tracks.next_id + 1,
         )
         tracks = jax.tree.map(lambda a, b, born=born: jnp.where(born, a, b), new, tracks)
@@ -241,6 +284,7 @@ def update_tracks(
         valid=keep,
         id=jnp.where(keep, tracks.id, 0),
         hits=jnp.where(keep, tracks.hits, 0),
+        found=tracks.found & keep,
     )
 
 
@@ -288,6 +332,7 @@ class TrackMemory:
             memory_min_support=positive(trainable=False),
             memory_support_radius=positive(trainable=False),
             memory_confirm=integer(1, 1000),
+            memory_redetect_sigmas=positive(trainable=False),
         )
 
     def validate(self) -> None:
@@ -312,7 +357,7 @@ class TrackMemory:
         cand_xy, cand_valid = candidates_from(modes, estimate_mean)
         support = observed_support(cand_xy, buffer, params.memory_support_radius)
         observed = cand_valid & (support >= params.memory_min_support)
-        return update_tracks(tracks, cand_xy, observed, jnp.asarray(dt, jnp.float32), ego, params)
+        return update_tracks(tracks, cand_xy, observed, jnp.asarray(dt, jnp.float32), ego, params, buffer)
 
     def lost(self, tracks: TrackTable, params: MemoryParams) -> Bool[Array, " m"]:
         """The tracks the filter has lost this step (they get hints)."""

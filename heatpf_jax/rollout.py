@@ -135,14 +135,16 @@ def _pose_inputs(sequence: Sequence, model) -> dict[str, Any]:
             "robot_pose: the sequence has no robot_pose (self-localisation), which this method's ego-motion "
             "reads; use --set ego=odometry, or a sequence with robot_pose and pose_confidence"
         )
-    if isinstance(sequence.robot_pose, jax.core.Tracer) or isinstance(sequence.pose_confidence, jax.core.Tracer):
-        raise ValueError("robot_pose: pose deltas are computed on the host; pass concrete arrays")
     num_steps = np.shape(sequence.robot_pose)[0]
+    if isinstance(sequence.robot_pose, jax.core.Tracer) or isinstance(sequence.pose_confidence, jax.core.Tracer):
+        return {  # traced (a vmapped batch of sequences): float32 on the device
+            "robot_pose": pose_deltas(sequence.robot_pose, jnp),
+            "pose_confidence": jnp.asarray(pose_confidences(sequence.pose_confidence, num_steps, jnp), jnp.float32),
+        }
+    confidence = None if sequence.pose_confidence is None else np.asarray(sequence.pose_confidence)
     return {
         "robot_pose": pose_deltas(np.asarray(sequence.robot_pose)).astype(np.float32),
-        "pose_confidence": pose_confidences(
-            None if sequence.pose_confidence is None else np.asarray(sequence.pose_confidence), num_steps
-        ).astype(np.float32),
+        "pose_confidence": pose_confidences(confidence, num_steps).astype(np.float32),
     }
 
 

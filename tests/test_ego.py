@@ -26,6 +26,10 @@ def test_pose_deltas_against_homogeneous_transforms(rng):
         rel = np.linalg.inv(_homogeneous(poses[t - 1])) @ _homogeneous(poses[t])
         np.testing.assert_allclose(delta[t, :2], rel[:2, 2], atol=1e-9)
         np.testing.assert_allclose(delta[t, 2], np.arctan2(rel[1, 0], rel[0, 0]), atol=1e-12)
+    near = poses - poses[0]  # traced poses (a vmapped batch) take the float32 path
+    np.testing.assert_allclose(pose_deltas(jnp.asarray(near, jnp.float32), jnp), pose_deltas(near), atol=2e-5)
+    conf = np.array([0.9, 0.1, 0.8])
+    np.testing.assert_allclose(pose_confidences(jnp.asarray(conf), 3, jnp), pose_confidences(conf, 3), atol=1e-7)
 
 
 def test_pose_confidence_of_a_delta_is_the_lower_of_its_poses():

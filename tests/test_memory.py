@@ -18,6 +18,7 @@ from heatpf_jax.memory import (
     lost_tracks,
     observed_support,
     predict_tracks,
+    redetect,
     update_tracks,
 )
 from heatpf_jax.motion import Particles, RandomWalk
@@ -37,6 +38,7 @@ def _table(rng, m=3):
         cov=jnp.asarray(a @ a.transpose(0, 2, 1) + np.eye(4), jnp.float32),
         age=jnp.zeros((m,), jnp.float32),
         hits=jnp.full((m,), 5, jnp.int32),
+        found=jnp.zeros((m,), bool),
         next_id=jnp.int32(m + 1),
     )
 
@@ -121,6 +123,30 @@ def test_observed_support_against_brute_force(rng):
     np.testing.assert_allclose(got, want, rtol=1e-5)
 
 
+def test_redetection_against_brute_force(rng):
+    """A lost track finds measurements within 3 Mahalanobis sigmas of its prediction itself."""
+    tracks = _table(rng, 3)
+    m = 40
+    buf = Measurements(
+        xy=jnp.asarray(rng.normal(size=(m, 2)) * 1.5, jnp.float32),
+        weight=jnp.asarray(rng.uniform(0, 1, m), jnp.float32),
+        valid=jnp.asarray(rng.uniform(size=m) < 0.8),
+        footprint=jnp.zeros((m, 2, 2), jnp.float32),
+    )
+    lost = jnp.array([True, False, True])
+    params = PARAMS._replace(memory_min_support=0.5)
+    again, centroid = redetect(tracks, lost, buf, params)
+    assert bool(again[0] | again[2]) and not bool(again[1])  # the check below is not vacuous
+    for i in range(3):
+        s = np.asarray(tracks.cov[i, :2, :2], np.float64) + params.memory_obs_std**2 * np.eye(2)
+        d = np.asarray(buf.xy, np.float64) - np.asarray(tracks.mean[i, :2], np.float64)
+        d2 = np.einsum("ni,ij,nj->n", d, np.linalg.inv(s), d)
+        w = np.where((d2 <= 9.0) & np.asarray(buf.valid) & bool(lost[i]), np.asarray(buf.weight), 0.0)
+        assert bool(again[i]) == (w.sum() >= 0.5)
+        if w.sum() > 0:
+            np.testing.assert_allclose(centroid[i], w @ np.asarray(buf.xy) / w.sum(), rtol=1e-4, atol=1e-5)
+
+
 def test_hints_land_around_lost_tracks_with_their_spread():
     n = 4000
     tracks = empty_tracks(3)
@@ -138,7 +164,7 @@ def test_hints_land_around_lost_tracks_with_their_spread():
         rank=rank, used=jnp.int32(100), estimate=None, motion=RandomWalk(),
         motion_params=RandomWalk().default_params(), memory=tracks, memory_lost=lost,
     )
-    out = MemoryHints().inject(jax.random.key(0), context, HintParams(hint_fraction=0.1, hint_std=0.1))
+    out = MemoryHints(max_hinted=2).inject(jax.random.key(0), context, HintParams(hint_fraction=0.1, hint_std=0.1))
     xy = np.asarray(out.particles.xy)
     moved = np.any(xy != 50.0, axis=1)
     assert moved.sum() == 800 and int(out.used) == 900
@@ -150,6 +176,12 @@ def test_hints_land_around_lost_tracks_with_their_spread():
         assert len(near) == 400
         np.testing.assert_allclose(near.mean(0), centre, atol=0.04)
         np.testing.assert_allclose(near.var(0), var, rtol=0.2)
+    # By default only the lost track observed on most steps gets hints.
+    context = context._replace(memory=tracks._replace(hits=jnp.array([4, 9, 20], jnp.int32)))
+    out = MemoryHints().inject(jax.random.key(0), context, HintParams(hint_fraction=0.1, hint_std=0.1))
+    xy = np.asarray(out.particles.xy)
+    moved = np.any(xy != 50.0, axis=1)
+    assert moved.sum() == 400 and np.allclose(xy[moved].mean(0), [1.0, -2.0], atol=0.04)
 
 
 def test_filter_with_memory_runs_vmaps_and_reports_tracks():

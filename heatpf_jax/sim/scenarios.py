@@ -466,7 +466,13 @@ def _check_args(scenario, seed, num_steps, dt, shrink) -> int:
 
 
 def simulate_with_info(
-    scenario: str, seed: int, *, num_steps: int | None = None, dt: float = 0.1, shrink: int = 1
+    scenario: str,
+    seed: int,
+    *,
+    num_steps: int | None = None,
+    dt: float = 0.1,
+    shrink: int = 1,
+    occlude: tuple[int, int] | None = None,
 ) -> tuple[Sequence, dict[str, Any]]:
     """Simulates one scenario and reports what was rendered.
 
@@ -476,6 +482,9 @@ def simulate_with_info(
         num_steps: T (default 300: 30 s at 10 Hz).
         dt: filter period, seconds.
         shrink: integer divisor of the 200 x 150 heat map (same field of view), for quick tests.
+        occlude: optional steps ``(start, stop)`` on which the ball is hidden as well (an occlusion of
+            ``stop - start`` steps, e.g. for the long-term memory's re-acquisition test); the world is
+            the scenario's own, unchanged.
 
     Returns:
         ``(sequence, info)``: a validated version-1 sequence with ground truth, and a dict of
@@ -513,6 +522,12 @@ def simulate_with_info(
     dt = float(dt)
     intrinsics, shape = scaled_camera(int(shrink))
     plan = _BUILDERS[scenario](int(seed), num_steps, dt, intrinsics, shape)
+    if occlude is not None:
+        start, stop = (int(v) for v in occlude)
+        if not 0 <= start < stop <= num_steps:
+            raise ValueError(f"occlude: must be (start, stop) with 0 <= start < stop <= {num_steps}, got {occlude}")
+        hidden = (np.arange(num_steps) >= start) & (np.arange(num_steps) < stop)
+        plan.ball_on = (np.ones(num_steps, bool) if plan.ball_on is None else plan.ball_on) & ~hidden
     seq, info = _render(plan, num_steps, dt, intrinsics, shape)
     return seq, {"scenario": scenario, "seed": int(seed), **info}
 
