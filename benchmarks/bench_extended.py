@@ -12,7 +12,9 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.ClusterResampling`;
 * ``heatmap``: the product's defaults (velocity, Gaussian kernel over k = 10);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
-  measurement particles, the dominant mode as output).
+  measurement particles, the dominant mode as output);
+* ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
+  4 track slots, re-detection, hint particles; issue 12's speed check).
 
 Run: ``.venv/bin/python benchmarks/bench_extended.py [--sizes 500x1024] [--repeats 200] [--threads 1]``
 """
@@ -49,6 +51,9 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
     }
     for name in ("heatmap", "extended"):
         out[name] = tuple(hp.build(name, options))
+    with_memory = options._replace(memory="tracks")
+    for name in ("paper", "heatmap", "extended"):
+        out[f"{name} + memory"] = tuple(hp.build(name, with_memory))
     return out
 
 

@@ -32,6 +32,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax import params as P
+from heatpf_jax.ego import pose_deltas
 from heatpf_jax.estimate import Estimate
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.rollout import validate_params
@@ -57,6 +58,8 @@ def _tick(
     has_heatmap: Bool[Array, ""],
     cam_to_base: Float[Array, "4 4"],
     odometry: Float[Array, "3"],
+    pose_delta: Float[Array, "3"],
+    pose_confidence: Float[Array, ""],
     constants: _Constants,
     params: Any,
 ):
@@ -71,6 +74,8 @@ def _tick(
         intrinsics=constants.intrinsics,
         plane_height=constants.plane_height,
         dt=constants.dt,
+        pose_delta=pose_delta,
+        pose_confidence=pose_confidence,
     )
     state, info = model.step(key, state, inputs, params)
     return state, info, t + 1
@@ -232,9 +237,10 @@ class Tracker:
         # Compile and warm up on the initial state (results dropped): a host heat map, then none. The
         # second call compiles nothing; it only adds the device-resident zero map to jit's dispatch cache.
         pose, still = np.eye(4, dtype=np.float32), np.zeros((3,), np.float32)
+        sure = np.float32(1.0)
         for heat, has in ((np.zeros(shape, np.float32), self._true), (self._no_heatmap, self._false)):
             jax.block_until_ready(self._step(self._model, self._fold, self._step_keys, self._t_dev, self._state, heat,
-                                             has, pose, still, self._constants, self._params))
+                                             has, pose, still, still, sure, self._constants, self._params))
 
     def reset(self, key: PRNGKeyArray) -> None:
         """Starts again from ``model.init`` with a new key: ``t = 0``, no ``last_info``; nothing recompiles."""
@@ -247,12 +253,15 @@ class Tracker:
         self._t = 0
         self._t_dev = jnp.zeros((), jnp.int32)
         self._last_info = None
+        self._last_pose = None  # the previous tick's robot_pose (float64) and its confidence
 
     def update(
         self,
         heatmap: Float[ArrayLike, "h w"] | None,
         cam_to_base: Float[ArrayLike, "4 4"],
         odometry: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0),
+        robot_pose: Float[ArrayLike, "3"] | None = None,
+        pose_confidence: float = 1.0,
     ) -> Estimate:
         """One filter tick.
 
@@ -265,6 +274,10 @@ class Tracker:
             cam_to_base: ``[4, 4]`` camera optical frame -> robot base frame now.
             odometry: ``(dx, dy, dtheta)`` from the previous tick's base frame to this one's; ignored on
                 the first tick after construction or :meth:`reset`.
+            robot_pose: the self-localisation's ``(x, y, theta)`` in a world frame now, for a model whose
+                ego-motion reads it (``--set ego=pose``, :mod:`heatpf_jax.ego`; required there): the
+                motion since the previous tick's pose is computed here in float64.
+            pose_confidence: its confidence in ``[0, 1]``.
 
         Returns:
             :class:`~heatpf_jax.estimate.Estimate` (``mean [2]``, ``cov [2, 2]``, ``weighted_mean [2]``);
@@ -282,13 +295,31 @@ class Tracker:
             heatmap, has_heatmap = _as_f32("heatmap", heatmap, self._heatmap_shape), self._true
         cam_to_base = _as_f32("cam_to_base", cam_to_base, (4, 4))
         odometry = _as_f32("odometry", odometry, (3,))
+        delta, confidence = self._pose_motion(robot_pose, pose_confidence)
         self._state, info, self._t_dev = self._step(
             self._model, self._fold, self._step_keys, self._t_dev, self._state, heatmap, has_heatmap,
-            cam_to_base, odometry, self._constants, self._params,
+            cam_to_base, odometry, delta, confidence, self._constants, self._params,
         )
         self._t += 1
         self._last_info = info
         return Estimate(mean=info.mean, cov=info.cov, weighted_mean=info.weighted_mean)
+
+    def _pose_motion(self, robot_pose, pose_confidence) -> tuple[np.ndarray, np.float32]:
+        """The pose delta since the previous tick and its confidence (:func:`heatpf_jax.ego.pose_deltas`)."""
+        if robot_pose is None:
+            if "robot_pose" in getattr(self._model, "requires", ()):
+                raise ValueError("robot_pose: this model's ego-motion reads the self-localisation; pass robot_pose "
+                                 "(x, y, theta) on every tick")
+            return np.zeros((3,), np.float32), np.float32(1.0)
+        pose = _floats("robot_pose", robot_pose, (3,))
+        conf = float(_floats("pose_confidence", pose_confidence, ()))
+        if not 0.0 <= conf <= 1.0:
+            raise ValueError(f"pose_confidence: must lie in [0, 1], got {conf}")
+        previous, self._last_pose = self._last_pose, (pose, conf)
+        if previous is None:
+            return np.zeros((3,), np.float32), np.float32(conf)
+        delta = pose_deltas(np.stack([previous[0], pose]))[1]
+        return delta.astype(np.float32), np.float32(min(conf, previous[1]))
 
     @property
     def state(self):

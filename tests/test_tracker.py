@@ -198,3 +198,25 @@ def test_bad_update_inputs(small_sequence):
     with pytest.raises(ValueError, match="^key:"):
         tracker.reset(0)
     assert tracker.t == 0
+
+
+def test_self_localisation_tick_by_tick_equals_run(small_sequence, rng):
+    """With ``ego=pose_full`` and poses given each tick, the tracker's estimates are ``run``'s: the deltas
+    and their confidences (the lower of two poses') are computed alike."""
+    seq = perturbed(small_sequence, rng)
+    poses = np.cumsum(rng.normal(0.0, [0.05, 0.05, 0.1], (seq.num_steps, 3)), axis=0) + [40.0, -12.0, 0.0]
+    conf = rng.uniform(0.0, 1.0, seq.num_steps)
+    seq = seq._replace(robot_pose=poses, pose_confidence=conf)
+    model = SMALL_FILTER._replace(ego=hp.LocalisationEgo(translate=True))
+    params = model.make_params(k=3)
+    key = jax.random.key(5)
+    ref = hp.run(key, seq, params, model)
+    tracker = make_tracker(seq, key, model, params, num_steps=seq.num_steps)
+    with pytest.raises(ValueError, match="^robot_pose: this model's ego-motion reads the self-localisation"):
+        tracker.update(None, seq.cam_to_base[0])
+    means = []
+    for t in range(seq.num_steps):
+        heat = seq.heatmaps[t] if seq.has_heatmap[t] else None
+        est = tracker.update(heat, seq.cam_to_base[t], seq.odometry[t], robot_pose=poses[t], pose_confidence=conf[t])
+        means.append(np.asarray(est.mean))
+    np.testing.assert_allclose(np.stack(means), np.asarray(ref.info.mean), rtol=1e-6, atol=1e-6)
