@@ -760,8 +760,9 @@ def _build_parser() -> argparse.ArgumentParser:
                           "(`heatpf tune --output`), --set on top")
     p_params.set_defaults(func=_cmd_params)
 
-    from heatpf_jax import rosbag_import
+    from heatpf_jax import cli_rgb, rosbag_import
 
+    cli_rgb.add_parser(sub, parent)
     rosbag_import.add_parser(sub)
     return parser
 

@@ -17,7 +17,7 @@ import math
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, UInt8
 
-__all__ = ["DEFAULT_BINS", "histogram", "num_bins", "patch_histogram", "rgi_bins"]
+__all__ = ["DEFAULT_BINS", "histogram", "num_bins", "patch_histogram", "rgi_bins", "smooth_intensity"]
 
 DEFAULT_BINS = (12, 12, 4)  # r', g', I: the paper's experimental setup
 
@@ -27,8 +27,15 @@ def num_bins(bins: tuple[int, int, int] = DEFAULT_BINS) -> int:
     return int(bins[0] * bins[1] * bins[2])
 
 
+# Grey (r = g = b) maps to angle 0.5 exactly, a bin edge for an even number of bins; the nearest other
+# integer ratio (256 / 255) is 1.2e-3 away. A nudge far below that and far above float32 rounding puts
+# grey, white and black (the ball) inside one bin whichever way atan2 rounds (XLA's fused atan2 and
+# NumPy's differ in the last bit).
+_GREY_NUDGE = 1e-4
+
+
 def _angle_bin(num: Array, den: Array, count: int) -> Array:
-    angle = jnp.arctan2(num + 1.0, den + 1.0) * (2.0 / math.pi)  # (0, 1)
+    angle = jnp.arctan2(num + 1.0, den + 1.0) * (2.0 / math.pi) + _GREY_NUDGE  # (0, 1)
     return jnp.clip(jnp.floor(angle * count), 0, count - 1).astype(jnp.int32)
 
 
@@ -91,3 +98,21 @@ def patch_histogram(
         x, y, w, h = (int(v) for v in box)
         image = image[y : y + h, x : x + w]
     return histogram(rgi_bins(image, bins), num_bins(bins))
+
+
+def smooth_intensity(
+    histogram_: Float[ArrayLike, " m"], bins: tuple[int, int, int] = DEFAULT_BINS, weight: float = 0.25
+) -> Float[Array, " m"]:
+    """The histogram smoothed along the intensity bins with the kernel ``(weight, 1 - 2 weight, weight)``.
+
+    A kernel density estimate in intensity: a gain on the light (a cloud, a lamp) moves a white ball's
+    pixels by up to a bin of ``I`` while ``r'`` and ``g'`` stay; a reference smoothed this way still
+    matches it. Mass that would leave the first or last bin is dropped, then the result is
+    renormalised.
+    """
+    n_r, n_g, n_i = bins
+    h = jnp.asarray(histogram_, jnp.float32).reshape(n_r, n_g, n_i)
+    padded = jnp.pad(h, ((0, 0), (0, 0), (1, 1)))
+    out = (1.0 - 2.0 * weight) * h + weight * (padded[..., :-2] + padded[..., 2:])
+    total = jnp.sum(out)
+    return (out / jnp.where(total > 0, total, 1.0)).reshape(-1)

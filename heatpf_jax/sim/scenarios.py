@@ -473,6 +473,7 @@ def simulate_with_info(
     dt: float = 0.1,
     shrink: int = 1,
     occlude: tuple[int, int] | None = None,
+    rgb: bool = False,
 ) -> tuple[Sequence, dict[str, Any]]:
     """Simulates one scenario and reports what was rendered.
 
@@ -485,6 +486,8 @@ def simulate_with_info(
         occlude: optional steps ``(start, stop)`` on which the ball is hidden as well (an occlusion of
             ``stop - start`` steps, e.g. for the long-term memory's re-acquisition test); the world is
             the scenario's own, unchanged.
+        rgb: also render RGB frames of the same world into the sequence's ``images``
+            (:func:`heatpf_jax.sim.render_rgb.render_rgb`; about 25 ms a 200 x 150 frame).
 
     Returns:
         ``(sequence, info)``: a validated version-1 sequence with ground truth, and a dict of
@@ -529,10 +532,16 @@ def simulate_with_info(
         hidden = (np.arange(num_steps) >= start) & (np.arange(num_steps) < stop)
         plan.ball_on = (np.ones(num_steps, bool) if plan.ball_on is None else plan.ball_on) & ~hidden
     seq, info = _render(plan, num_steps, dt, intrinsics, shape)
+    if rgb:
+        from heatpf_jax.sim.render_rgb import render_rgb
+
+        seq = seq._replace(images=render_rgb(seq, info, seed=int(seed)))
     return seq, {"scenario": scenario, "seed": int(seed), **info}
 
 
-def simulate(scenario: str, seed: int, *, num_steps: int | None = None, dt: float = 0.1, shrink: int = 1) -> Sequence:
+def simulate(
+    scenario: str, seed: int, *, num_steps: int | None = None, dt: float = 0.1, shrink: int = 1, rgb: bool = False
+) -> Sequence:
     """Simulates one scenario as a validated version-1 sequence with ground truth.
 
     Scenarios (:data:`SCENARIOS`, 300 steps at 10 Hz by default):
@@ -566,7 +575,7 @@ def simulate(scenario: str, seed: int, *, num_steps: int | None = None, dt: floa
     ``two_balls``, ``shot`` and ``turning`` make the same world (paths, poses) at every ``shrink``.
     See :func:`simulate_with_info` for the arguments.
     """
-    return simulate_with_info(scenario, seed, num_steps=num_steps, dt=dt, shrink=shrink)[0]
+    return simulate_with_info(scenario, seed, num_steps=num_steps, dt=dt, shrink=shrink, rgb=rgb)[0]
 
 
 def simulate_standard(seed: int, num_steps: int = 300, dt: float = 0.1, *, shrink: int = 1) -> Sequence:
