@@ -132,8 +132,8 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
     p.add_argument("--output", "-o", required=True, help="the new sequence (not replaced if it exists, unless --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --output")
     p.add_argument("--theta", type=float, default=0.2, help="eq. 3's lower limit (default 0.2)")
-    p.add_argument("--window-scale", type=float, default=0.8, help="object window half-size over the expected "
-                   "ball radius in pixels (default 0.8)")
+    p.add_argument("--window-scale", type=float, default=0.9, help="object window half-size over the expected "
+                   "ball radius in pixels (default 0.9)")
     p.add_argument("--smoothing", type=float, default=0.25, help="reference smoothing along the intensity bins, "
                    "for lighting changes (default 0.25)")
     p.set_defaults(func=cmd_colour)

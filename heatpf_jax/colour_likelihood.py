@@ -44,16 +44,17 @@ class ColourParams(NamedTuple):
     """Numbers of the colour likelihood.
 
     Attributes:
-        theta: eq. 3's lower limit on the background-subtracted coefficient.
-        window_scale: object window half-size over the expected ball radius (0.8: the square lies
-            mostly inside the ball's disc).
+        theta: eq. 3's lower limit on the background-subtracted coefficient (0.2; 0.3 lost the ball in
+            the darker frames of seed 101).
+        window_scale: object window half-size over the expected ball radius (0.9, chosen on rendered
+            ``standard`` seeds 100-102 among 0.5-1.0: smaller windows lose the ball among field lines).
         ring_scale: the ring's outer half-size over the object window's.
         min_half_size: smallest object window half-size, pixels.
         max_half_size: largest object window half-size, pixels.
     """
 
     theta: float = 0.2
-    window_scale: float = 0.8
+    window_scale: float = 0.9
     ring_scale: float = 2.0
     min_half_size: float = 1.0
     max_half_size: float = 25.0
