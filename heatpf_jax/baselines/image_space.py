@@ -16,7 +16,9 @@
   systematic resampling every step, output the weighted mean.
 
 All are pure JAX with ``init``/``step``; :func:`track` scans one over a sequence of frames. None re-detects
-a lost object, as in the paper's comparison. Positions are ``(u, v)`` = (column, row) in pixels.
+a lost object, as in the paper's comparison; positions are kept inside the image (a window that finds
+none of the reference's colours gives the Kalman variant no measurement). Positions are ``(u, v)`` =
+(column, row) in pixels.
 """
 
 from __future__ import annotations
@@ -118,8 +120,12 @@ def _epanechnikov_histogram(idx, centre, half, num, valid):
 
 
 def _mean_shift(idx, q, start, half, params: MeanShiftParams, num: int):
-    """Comaniciu's iterations from ``start`` on one frame's bin image: the new centre."""
+    """Comaniciu's iterations from ``start`` (clipped to the image) on one frame's bin image:
+    ``(centre, found)``, ``found`` False where the window holds none of the reference's colours."""
     valid = jnp.ones(idx.shape, bool)
+    h, w = idx.shape
+    start = jnp.clip(jnp.asarray(start, jnp.float32), jnp.zeros((2,), jnp.float32),
+                     jnp.array([w - 1, h - 1], jnp.float32))
 
     def body(carry):
         centre, i, _ = carry
@@ -133,8 +139,10 @@ def _mean_shift(idx, q, start, half, params: MeanShiftParams, num: int):
         return new, i + 1, done
 
     centre, _, _ = lax.while_loop(lambda c: (c[1] < params.max_iter) & ~c[2], body,
-                                  (jnp.asarray(start, jnp.float32), jnp.int32(0), jnp.bool_(False)))
-    return centre
+                                  (start, jnp.int32(0), jnp.bool_(False)))
+    p, r2, _, _ = _epanechnikov_histogram(idx, centre, half, num, valid)
+    found = jnp.sum(jnp.sqrt(p * q)) > 0.0
+    return centre, found
 
 
 class PixelState(NamedTuple):
@@ -160,7 +168,7 @@ class MeanShiftTracker:
     def step(self, key, state: PixelState, frame, q, half, params: MeanShiftParams):
         del key
         idx = rgi_bins(frame, self.bins)
-        centre = _mean_shift(idx, q, state.mean, half, params, num_bins(self.bins))
+        centre, _ = _mean_shift(idx, q, state.mean, half, params, num_bins(self.bins))
         return PixelState(mean=centre, cov=state.cov), centre
 
 
@@ -199,12 +207,19 @@ class KalmanMeanShiftTracker:
         mean = f @ state.mean
         cov = f @ state.cov @ f.T + params.accel_std**2 * (g @ g.T)
         idx = rgi_bins(frame, self.bins)
-        z = _mean_shift(idx, q, mean[:2], half, params.mean_shift, num_bins(self.bins))
+        z, found = _mean_shift(idx, q, mean[:2], half, params.mean_shift, num_bins(self.bins))
         h = jnp.eye(2, 4, dtype=jnp.float32)
         s = h @ cov @ h.T + params.meas_std**2 * jnp.eye(2, dtype=jnp.float32)
         gain = jnp.linalg.solve(s, h @ cov).T
-        mean = mean + gain @ (z - h @ mean)
-        cov = (jnp.eye(4, dtype=jnp.float32) - gain @ h) @ cov
+        # No reference colour in the window: no measurement (prediction only).
+        mean = jnp.where(found, mean + gain @ (z - h @ mean), mean)
+        cov = jnp.where(found, (jnp.eye(4, dtype=jnp.float32) - gain @ h) @ cov, cov)
+        # The position stays in the image; a bound stops the velocity along it.
+        rows, cols = idx.shape
+        bound = jnp.array([cols - 1, rows - 1], jnp.float32)
+        clipped = jnp.clip(mean[:2], jnp.zeros((2,), jnp.float32), bound)
+        vel = jnp.where(clipped != mean[:2], 0.0, mean[2:])
+        mean = jnp.concatenate([clipped, vel])
         return PixelState(mean=mean, cov=cov), mean[:2]
 
 
@@ -273,6 +288,9 @@ class ColourParticleTracker:
         noise = jax.random.normal(k_noise, (n, 4), jnp.float32) * jnp.array(
             [params.position_std, params.position_std, params.velocity_std, params.velocity_std], jnp.float32)[None, :]
         p = jnp.concatenate([p[:, :2] + p[:, 2:], p[:, 2:]], axis=1) + noise
+        rows, cols = frame.shape[:2]
+        p = p.at[:, :2].set(jnp.clip(p[:, :2], jnp.zeros((1, 2), jnp.float32),
+                                     jnp.array([[cols - 1, rows - 1]], jnp.float32)))  # particles stay in the image
         hist, q_top = self.window_histograms(frame, q, p[:, :2], half)
         rho = jnp.sum(jnp.sqrt(hist * q_top[None, :]), axis=1)
         log_w = -params.lam * (1.0 - rho)
