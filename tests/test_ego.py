@@ -9,8 +9,7 @@ import heatpf_jax as hp
 from heatpf_jax.ego import EGO_MOTIONS, LocalisationEgo, NoEgo, OdometryEgo, pose_confidences, pose_deltas
 from heatpf_jax.presets import FilterOptions, build
 from heatpf_jax.rollout import prepare_run
-from heatpf_jax.sim.scenarios import simulate_with_info
-from tests.conftest import step_inputs
+from tests.conftest import SMALL_FILTER, step_inputs
 
 
 def _homogeneous(pose):
@@ -65,40 +64,34 @@ def test_a_sequence_without_poses_is_refused_in_one_line(small_sequence):
     assert prepare_run(seq, plain.default_params(), plain)[0].robot_pose is None
 
 
-@pytest.fixture(scope="module")
-def turning():
-    return simulate_with_info("turning", 3, num_steps=60, shrink=4)
-
-
-def test_exact_localisation_at_full_confidence_is_the_odometry(turning):
+def test_exact_localisation_at_full_confidence_is_the_odometry(small_sequence, rng):
     """With the odometry set to the pose deltas and confidence 1, ``pose_full`` is ``odometry`` bit for bit."""
-    seq, _ = turning
-    seq = seq._replace(odometry=pose_deltas(seq.robot_pose), pose_confidence=np.ones(seq.num_steps))
-    options = FilterOptions(num_particles=128, max_measurements=128)
-    a = build("paper", options)
-    b = build("paper", options._replace(ego="pose_full"))
+    poses = np.cumsum(rng.normal(0.0, [0.05, 0.05, 0.1], (small_sequence.num_steps, 3)), axis=0) + [40.0, -12.0, 0.0]
+    seq = small_sequence._replace(odometry=pose_deltas(poses), robot_pose=poses,
+                                  pose_confidence=np.ones(small_sequence.num_steps))
+    params = SMALL_FILTER.make_params(k=3)  # the model and shapes of test_tracker's: one compilation
     key = jax.random.key(1)
-    ra = hp.run(key, seq, a.params, a.model).info.mean
-    rb = hp.run(key, seq, b.params, b.model).info.mean
+    ra = hp.run(key, seq, params, SMALL_FILTER).info.mean
+    full = SMALL_FILTER._replace(ego=LocalisationEgo(translate=True))
+    rb = hp.run(key, seq, params, full).info.mean
     np.testing.assert_array_equal(np.asarray(ra), np.asarray(rb))
 
 
-def test_weighting_ignores_a_localisation_jump():
-    """A standing robot whose localisation jumps 0.6 m and 30 degrees away and back at confidence 0.01:
+def test_weighting_ignores_a_localisation_jump(small_sequence):
+    """A standing robot whose localisation jumps 0.5 m and 30 degrees away and back at confidence 0.01:
     with the heat maps gone from the jump on, the estimate holds the ball only when weighted."""
-    seq = simulate_with_info("standard", 0, num_steps=40, shrink=4)[0]
-    robot_pose = np.zeros((seq.num_steps, 3))
-    robot_pose[30:34] = [0.5, 0.3, np.deg2rad(30.0)]
-    conf = np.full(seq.num_steps, 0.95)
-    conf[30:34] = 0.01
-    seq = seq._replace(has_heatmap=np.arange(seq.num_steps) < 30, robot_pose=robot_pose, pose_confidence=conf)
+    n = small_sequence.num_steps
+    robot_pose = np.zeros((n, 3))
+    robot_pose[12:15] = [0.5, 0.3, np.deg2rad(30.0)]
+    conf = np.full(n, 0.95)
+    conf[12:15] = 0.01
+    seq = small_sequence._replace(has_heatmap=np.arange(n) < 12, robot_pose=robot_pose, pose_confidence=conf)
     errors = {}
-    for ego in ("pose", "pose_unweighted"):
-        m = build("paper", FilterOptions(num_particles=256, max_measurements=128, ego=ego))
-        params = m.model.make_params(aging=0.0)
-        mean = np.asarray(hp.run(jax.random.key(0), seq, params, m.model).info.mean)
-        errors[ego] = float(np.linalg.norm(mean[32] - seq.ground_truth[29]))
-    assert errors["pose"] < 0.15 and errors["pose_unweighted"] > 0.5, errors
+    for weighted in (True, False):
+        model = SMALL_FILTER._replace(ego=LocalisationEgo(weighted=weighted))
+        mean = np.asarray(hp.run(jax.random.key(0), seq, model.make_params(aging=0.0), model).info.mean)
+        errors[weighted] = float(np.linalg.norm(mean[13] - seq.ground_truth[11]))
+    assert errors[True] < 0.15 and errors[False] > 0.5, errors
 
 
 def test_every_named_ego_motion_builds():

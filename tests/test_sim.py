@@ -99,7 +99,9 @@ def test_public_names_and_signatures():
         ("shrink", 1, "KEYWORD_ONLY"),
     ]
     params = inspect.signature(simulate).parameters
-    assert list(params) == ["scenario", "seed", "num_steps", "dt", "shrink"] and params["num_steps"].default is None
+    assert list(params) == ["scenario", "seed", "num_steps", "dt", "shrink", "rgb"]
+    assert params["num_steps"].default is None
+    assert params["rgb"].default is False and params["rgb"].kind is inspect.Parameter.KEYWORD_ONLY
     params = inspect.signature(render_heatmap).parameters
     assert list(params)[:4] == ["rng", "ball_xy", "intrinsics", "cam_to_base"]
     assert all(params[k].kind is inspect.Parameter.KEYWORD_ONLY for k in ("ball_radius", "shape", "peak", "noise"))

@@ -61,8 +61,10 @@ def test_ball_is_drawn_at_its_projection_and_hidden_when_occluded(occlusion):
 
 def test_frames_are_deterministic_and_the_light_changes(occlusion):
     seq, info = occlusion
-    again = render_rgb(seq, info, seed=2)
-    np.testing.assert_array_equal(again, seq.images)
-    assert not np.array_equal(render_rgb(seq, info, seed=3), seq.images)
     brightness = seq.images.reshape(seq.num_steps, -1).mean(axis=1)
     assert brightness.max() / brightness.min() > 1.05
+    n = 6  # the first frames of the same world, rendered again
+    short = {k: v[:n] if isinstance(v, np.ndarray) and v.shape[:1] == (seq.num_steps,) else v for k, v in info.items()}
+    head = seq.head(n)
+    np.testing.assert_array_equal(render_rgb(head, short, seed=2), seq.images[:n])
+    assert not np.array_equal(render_rgb(head, short, seed=3), seq.images[:n])
