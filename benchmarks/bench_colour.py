@@ -28,9 +28,14 @@ from _timing import first_call, positive_int, stats_ms
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.baselines.image_space import ColourParticleTracker, KalmanMeanShiftTracker, MeanShiftTracker
+from heatpf_jax.baselines.image_trackers import (
+    ColourParticleTracker,
+    KalmanMeanShiftTracker,
+    MeanShiftTracker,
+    Window,
+)
 from heatpf_jax.colour_likelihood import ColourParams, colour_likelihood, expected_radius_px
-from heatpf_jax.colour_space import patch_histogram, smooth_intensity
+from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 
@@ -49,6 +54,8 @@ def main(argv=None) -> int:
     shape = frame.shape[:2]
     radius = jax.jit(expected_radius_px, static_argnums=3)(intr, pose, 0.075, shape)
     likelihood = jax.jit(colour_likelihood)
+    likelihood_k = jax.jit(colour_likelihood, static_argnames="top_bins")
+    exact = exact_top_bins(q)  # what `heatpf colour` uses: the reference's non-empty bins, rounded up to 2^n
     full = jax.jit(lambda f, p: colour_likelihood(f, q, expected_radius_px(intr, p, 0.075, shape), params))
     heat = likelihood(frame, q, radius, params)
     model, fparams = hp.build("heatmap")
@@ -63,13 +70,14 @@ def main(argv=None) -> int:
     calls = {
         "colour map (window given)": lambda k: likelihood(frame, q, radius, params),
         "colour map + window": lambda k: full(frame, pose),
+        f"colour map, top_bins {exact} (exact)": lambda k: likelihood_k(frame, q, radius, params, top_bins=exact),
         "heatmap step on the colour map": lambda k: step(model, k, state, inputs, fparams),
     }
     for name, tracker in (("mean shift step", MeanShiftTracker()), ("mean shift + KF step", KalmanMeanShiftTracker()),
                           ("MC tracker step (150)", ColourParticleTracker())):
         p = tracker.default_params()
-        s0 = tracker.init(jax.random.key(0), start_uv, p)
-        fn = jax.jit(lambda k, s, f, tr=tracker, p=p: tr.step(k, s, f, q, jnp.float32(4.0), p))
+        s0 = tracker.init(jax.random.key(0), Window(start_uv, jnp.full((2,), 4.0, jnp.float32), q), p)
+        fn = jax.jit(lambda k, s, f, tr=tracker, p=p: tr.step(k, s, f, p))
         calls[name] = lambda k, fn=fn, s0=s0: fn(k, s0, frame)
     compile_s = {name: first_call(lambda c=call: c(jax.random.key(2))) for name, call in calls.items()}
     keys = jax.random.split(jax.random.key(3), args.repeats + 3)

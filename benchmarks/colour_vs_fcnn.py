@@ -21,7 +21,7 @@ from table1_rgb import THRESHOLD, reference_box
 import heatpf_jax as hp
 from heatpf_jax import params as P
 from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-from heatpf_jax.colour_space import patch_histogram, smooth_intensity
+from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
 from heatpf_jax.settings import parse_seeds
 from heatpf_jax.sim.scenarios import simulate_with_info
 
@@ -39,7 +39,7 @@ def main(argv=None) -> int:
         t0, box, _, _ = reference_box(seq, info)
         q = smooth_intensity(patch_histogram(seq.images[t0], box))
         heat = np.asarray(colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius,
-                                          ColourParams()))
+                                          ColourParams(), top_bins=exact_top_bins(q)))
         for method in args.methods.split(","):
             model, params = hp.build(method)
             colour_params = P.set_by_name(params, model.properties(), {"threshold": THRESHOLD})

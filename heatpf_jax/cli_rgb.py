@@ -74,7 +74,7 @@ def read_reference_image(path: str | Path) -> np.ndarray:
 
 def cmd_colour(args: argparse.Namespace) -> int:
     from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-    from heatpf_jax.colour_space import patch_histogram, smooth_intensity
+    from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
     from heatpf_jax.sequence import load_sequence, save_sequence
 
     check_input(args.input)
@@ -107,7 +107,9 @@ def cmd_colour(args: argparse.Namespace) -> int:
     q = smooth_intensity(q, weight=args.smoothing)
     params = ColourParams(theta=args.theta, window_scale=args.window_scale)
     start = time.perf_counter()
-    heat = np.asarray(colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, params))
+    heat = colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, params,
+                           top_bins=exact_top_bins(q))  # exact, and no more bins than the reference fills
+    heat = np.asarray(heat)
     elapsed = time.perf_counter() - start
     if not np.all(np.isfinite(heat)):
         raise RuntimeError("the colour likelihood produced a non-finite value; please report this")

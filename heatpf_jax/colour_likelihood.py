@@ -20,13 +20,16 @@ The window follows the ball's expected image size: :func:`expected_radius_px` gi
 the radius in pixels of a ball resting on the ground whose centre projects there (from the camera pose
 and intrinsics, like the heat-map projection of III-A); the object window's half-size is
 ``window_scale`` times it, the ring's ``ring_scale`` times that. Windowed histograms of every size come
-from summed-area tables (integral images) of one-hot bin indicators, four corner gathers per box. Only
+from summed-area tables (integral images, ``uint16``, :func:`~heatpf_jax.colour_space.bin_table`) of one-hot
+bin indicators, four corner gathers per box. Only
 bins where the reference has mass contribute to eq. 2-3, so the tables are built for the ``top_bins``
-bins of largest reference mass: exact whenever the reference has at most ``top_bins`` non-empty bins.
+bins of largest reference mass: exact whenever the reference has at most ``top_bins`` non-empty bins
+(:func:`~heatpf_jax.colour_space.exact_top_bins` gives the smallest such power of two).
 """
 
 from __future__ import annotations
 
+import math
 from functools import partial
 from typing import NamedTuple
 
@@ -35,9 +38,11 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Float, UInt8
 
-from heatpf_jax.colour_space import DEFAULT_BINS, rgi_bins
+from heatpf_jax.colour_space import DEFAULT_BINS, MAX_BOX_PIXELS, bin_table, box_counts
 
 __all__ = ["ColourParams", "colour_heatmaps", "colour_likelihood", "expected_radius_px"]
+
+_MAX_OUTER = (math.isqrt(MAX_BOX_PIXELS) - 1) // 2  # the largest ring half-size with an exact count (126)
 
 
 class ColourParams(NamedTuple):
@@ -131,31 +136,27 @@ def colour_likelihood(
     """
     image = jnp.asarray(image)
     h, w = image.shape[:2]
-    q = jnp.asarray(reference, jnp.float32)
-    k = min(int(top_bins), q.shape[0])
-    q_top, u_top = lax.top_k(q, k)
-    idx = rgi_bins(image, bins)
-    onehot = (idx[..., None] == u_top[None, None, :]).astype(jnp.float32)  # [H, W, K]
-    table = jnp.pad(jnp.cumsum(jnp.cumsum(onehot, axis=0), axis=1), ((1, 0), (1, 0), (0, 0)))
+    tables = bin_table(image, reference, top_bins, bins)
 
     radius = jnp.asarray(half_size, jnp.float32)
     inner = jnp.clip(jnp.round(params.window_scale * radius), params.min_half_size, params.max_half_size)
     outer = jnp.maximum(jnp.round(params.ring_scale * inner), inner + 1.0)
+    outer = jnp.minimum(outer, float(_MAX_OUTER))  # the uint16 tables count boxes below 2^16 pixels exactly
     v, u = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
 
     def box(r):
         r = r.astype(jnp.int32)
         y0, y1 = jnp.clip(v - r, 0, h), jnp.clip(v + r + 1, 0, h)
         x0, x1 = jnp.clip(u - r, 0, w), jnp.clip(u + r + 1, 0, w)
-        return _box_sums(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
+        return box_counts(tables.table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
 
     in_sum, in_count = box(inner)
     out_sum, out_count = box(outer)
     p_obj = in_sum / jnp.maximum(in_count, 1.0)[..., None]
     ring = jnp.maximum(out_count - in_count, 1.0)[..., None]
-    p_bck = jnp.maximum(out_sum - in_sum, 0.0) / ring
+    p_bck = (out_sum - in_sum) / ring
     # sqrt of a count ratio: exact zeros stay zero (no NaN gradient needed here: counts are data).
-    rho = jnp.sum(jnp.sqrt(q_top)[None, None, :] * jnp.maximum(jnp.sqrt(p_obj) - jnp.sqrt(p_bck), 0.0), axis=-1)
+    rho = jnp.sum(jnp.sqrt(tables.q_top)[None, None, :] * jnp.maximum(jnp.sqrt(p_obj) - jnp.sqrt(p_bck), 0.0), axis=-1)
     act = jnp.maximum(rho - params.theta, 0.0) / (1.0 - params.theta)
     return jnp.where(radius > 0, jnp.clip(act, 0.0, 1.0), 0.0)
 

@@ -9,7 +9,7 @@ import pytest
 
 from heatpf_jax.camera import camera_pose
 from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps, colour_likelihood, expected_radius_px
-from heatpf_jax.colour_space import histogram, num_bins, patch_histogram, rgi_bins, smooth_intensity
+from heatpf_jax.colour_space import exact_top_bins, histogram, num_bins, patch_histogram, rgi_bins, smooth_intensity
 
 M = num_bins()
 _likelihood = jax.jit(colour_likelihood, static_argnames=("bins", "top_bins"))
@@ -70,11 +70,15 @@ def test_bins_and_histograms_against_numpy(rng):
     np.testing.assert_allclose(smooth_intensity(q), want / want.sum(), rtol=1e-5, atol=1e-8)
 
 
-@pytest.mark.parametrize("top_bins", [M, 64])
+@pytest.mark.parametrize("top_bins", [M, 64, "exact"])
 def test_likelihood_against_brute_force(rng, top_bins):
     image = _scene(rng)
     q = np.asarray(patch_histogram(image, (12, 9, 6, 6)), np.float64)
     assert np.count_nonzero(q) <= 64  # the truncated tables are exact for this reference
+    if top_bins == "exact":  # the least power of two (>= 8) holding every non-empty bin
+        top_bins = exact_top_bins(q)
+        nonzero = np.count_nonzero(q)
+        assert top_bins == max(8, 2 ** int(np.ceil(np.log2(nonzero)))) and top_bins < 64, (top_bins, nonzero)
     half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)  # every size, and 0 (no ball possible)
     params = ColourParams(theta=0.15, window_scale=0.8, ring_scale=2.0, min_half_size=1.0, max_half_size=4.0)
     got = np.asarray(_likelihood(image, jnp.asarray(q, jnp.float32), half, params, top_bins=top_bins))
