@@ -34,7 +34,7 @@ from heatpf_jax.injection import (
     spawn_uniform,
     take_slots,
 )
-from heatpf_jax.injection_memory import HintParams, MemoryHints
+from heatpf_jax.injection_memory import HintParams, MemoryHints, RedetectionSeeds, SeedParams
 from heatpf_jax.injection_sensor import MeasurementExplorers, MeasurementParams, sample_measurements
 from heatpf_jax.knn import k_nearest_blocked
 from heatpf_jax.measurements import (
@@ -155,6 +155,8 @@ __all__ = [
     "MeasurementExplorers",
     "HintParams",
     "MemoryHints",
+    "RedetectionSeeds",
+    "SeedParams",
     "MemoryParams",
     "NoMemory",
     "TrackMemory",

@@ -6,6 +6,7 @@ One step, in the order of the sequence-file contract::
     motion.predict          odometry, noise, diffusion (III-D)        heatpf_jax.motion
     source.measure          heat map -> Measurements (III-A, IV-B)    heatpf_jax.sources
     buffer.update           odometry on the buffer, aging (III-C)     heatpf_jax.buffers
+    injectors[i].seed       re-detection seeds (Olufs 3.4), if any    heatpf_jax.injection_memory
     observation             log-likelihood per particle (III-B)       heatpf_jax.observation
     estimator.estimate      output (III-F)                            heatpf_jax.estimate
     resampling.resample     ESS trigger + index resampler (III-E)     heatpf_jax.resampling
@@ -250,6 +251,32 @@ class Filter(NamedTuple):
             memory=self.memory.init(),
         )
 
+    def _seed(self, key, state: FilterState, particles, buffer, ego_tracks, dt, params: FilterParams):
+        """Injectors with a ``seed`` method act on the predicted particles before the weighting (re-detection
+        seeds); ``(particles, prior log weights)``, unchanged without such injectors."""
+        seeders = [inj for inj in self.injectors if hasattr(inj, "seed")]
+        if not seeders:
+            return particles, state.log_weights
+        recall = self.memory.recall(state.memory, buffer, ego_tracks, dt, params.memory)
+        order = jnp.argsort(-state.log_weights, stable=True)  # rank 0: most support; ties: the lower slot
+        rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
+        context = InjectionContext(
+            particles=particles,
+            log_weights=state.log_weights,
+            rank=rank,
+            used=jnp.zeros((), jnp.int32),
+            estimate=None,
+            motion=self.motion,
+            motion_params=params.motion,
+            measurements=buffer,
+            memory=state.memory,
+            recall=recall,
+        )
+        k_seed = jax.random.fold_in(key, 11)  # a key of its own: the other stages' keys stay those without seeds
+        for i, injector in enumerate(seeders):
+            context = injector.seed(jax.random.fold_in(k_seed, i), context, params.injectors[injector.name])
+        return context.particles, context.log_weights
+
     def step(
         self, key: PRNGKeyArray, state: FilterState, inputs: StepInputs, params: FilterParams
     ) -> tuple[FilterState, StepInfo]:
@@ -277,8 +304,9 @@ class Filter(NamedTuple):
             None,
         )
         buffer = self.buffer.update(state.buffer, new, inputs, params.buffer)
+        particles, prior_log_w = self._seed(key, state, particles, buffer, ego.tracks, inputs.dt, params)
 
-        unnormalised = state.log_weights + self.observation.log_likelihood(particles.xy, buffer, params.observation)
+        unnormalised = prior_log_w + self.observation.log_likelihood(particles.xy, buffer, params.observation)
         transition = transition_log_weight(particles)  # score-form motion only (heatpf_jax.motion_score)
         if transition is not None:
             unnormalised = unnormalised + transition

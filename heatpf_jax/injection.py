@@ -122,6 +122,8 @@ class InjectionContext(NamedTuple):
             for injectors that draw from the measurements; ``None`` where there is none.
         memory: the long-term memory's tracks after this step (:class:`~heatpf_jax.memory.TrackTable`).
         memory_lost: ``bool [M]`` the tracks the filter has lost (:func:`heatpf_jax.memory.lost_tracks`).
+        recall: before the weighting only (injectors' ``seed``), the lost tracks this step's measurements
+            re-detect (:class:`heatpf_jax.memory.Recall`).
     """
 
     particles: Any
@@ -134,6 +136,7 @@ class InjectionContext(NamedTuple):
     measurements: Any = None
     memory: Any = None
     memory_lost: Any = None
+    recall: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

@@ -9,6 +9,14 @@ with the track's age through the constant-velocity prediction, so the spread fol
 hints take the lowest-support slots left by the injectors before them, like explorers and random
 particles (:func:`heatpf_jax.injection.take_slots`). When the ball stays hidden the hints find no
 measurement and carry no weight: "in the case of visually gone objects these hints are ignored".
+
+Re-detection seeds (:class:`RedetectionSeeds`): the memory "allows to re-detect vanished objects and using
+their new position as a new initial position for object tracking". Hints come after the step's
+weighting, so they act one frame after the ball is seen again; the seeds act on that frame. Before
+the particles are weighted, :meth:`heatpf_jax.memory.TrackMemory.recall` finds the lost tracks that this
+step's measurements re-detect, and ``round(seed_fraction * N)`` of the particles of least support are
+moved to ``N(re-detected position, seed_std^2 I)``; the step's weighting then judges them with everything
+else. An injector with a ``seed`` method is called at this stage (its ``inject`` does nothing).
 """
 
 from __future__ import annotations
@@ -18,12 +26,12 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import PRNGKeyArray
+from jaxtyping import Array, Bool, Int, PRNGKeyArray
 
 from heatpf_jax.injection import InjectionContext, explorer_count, replace_slots, take_slots
 from heatpf_jax.params import nonnegative, unit_interval
 
-__all__ = ["HintParams", "MemoryHints"]
+__all__ = ["HintParams", "MemoryHints", "RedetectionSeeds", "SeedParams"]
 
 
 class HintParams(NamedTuple):
@@ -75,24 +83,82 @@ class MemoryHints:
         tracks = context.memory
         if tracks is None or tracks.valid.shape[0] == 0:
             raise ValueError("injectors: MemoryHints needs a long-term memory (--set memory=tracks)")
-        n = context.log_weights.shape[0]
-        per_track = explorer_count(params.hint_fraction, n)
-        lost = context.memory_lost
-        if self.max_hinted < lost.shape[0]:  # only the lost tracks observed most often
-            order = jnp.argsort(-jnp.where(lost, tracks.hits, -1), stable=True)
-            rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
-            lost = lost & (rank < self.max_hinted)
-        num_lost = jnp.sum(lost.astype(jnp.int32))
-        count = jnp.minimum(per_track * num_lost, n - context.used)
-        mask = take_slots(context.rank, context.used, count)
-        # The slot of rank r is the (r - first)-th hint: hint i goes to the (i // b)-th lost track.
-        first = n - context.used - count
-        offset = jnp.clip(context.rank - first, 0, jnp.maximum(count - 1, 0))
-        lost_order = jnp.argsort(~lost, stable=True)  # lost tracks first, in slot order
-        track = lost_order[jnp.clip(offset // jnp.maximum(per_track, 1), 0, lost.shape[0] - 1)]
+        chosen = _most_observed(context.memory_lost, tracks.hits, self.max_hinted)
         pos_cov = tracks.cov[:, :2, :2] + params.hint_std**2 * jnp.eye(2, dtype=jnp.float32)[None]
-        chol = jax.vmap(_chol2)(pos_cov)
-        z = jax.random.normal(key, (n, 2), jnp.float32)
-        xy = tracks.mean[track, :2] + jnp.einsum("nij,nj->ni", chol[track], z)
-        context = replace_slots(jax.random.fold_in(key, 1), context, mask, xy)
-        return context._replace(used=context.used + count)
+        return _around(key, context, chosen, tracks.mean[:, :2], jax.vmap(_chol2)(pos_cov), params.hint_fraction)
+
+
+def _most_observed(mask: Bool[Array, " m"], hits: Int[Array, " m"], limit: int) -> Bool[Array, " m"]:
+    """``mask`` restricted to its ``limit`` tracks observed on most steps (ties: the lower slot)."""
+    if limit >= mask.shape[0]:
+        return mask
+    order = jnp.argsort(-jnp.where(mask, hits, -1), stable=True)
+    rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
+    return mask & (rank < limit)
+
+
+def _around(key, context: InjectionContext, chosen, centre, chol, fraction) -> InjectionContext:
+    """Refills ``round(fraction * N)`` free slots of least support per chosen track with ``N(centre, chol chol^T)``."""
+    n = context.log_weights.shape[0]
+    per_track = explorer_count(fraction, n)
+    count = jnp.minimum(per_track * jnp.sum(chosen.astype(jnp.int32)), n - context.used)
+    mask = take_slots(context.rank, context.used, count)
+    # The slot of rank r is the (r - first)-th new particle: particle i goes to the (i // b)-th chosen track.
+    first = n - context.used - count
+    offset = jnp.clip(context.rank - first, 0, jnp.maximum(count - 1, 0))
+    chosen_order = jnp.argsort(~chosen, stable=True)  # chosen tracks first, in slot order
+    track = chosen_order[jnp.clip(offset // jnp.maximum(per_track, 1), 0, chosen.shape[0] - 1)]
+    z = jax.random.normal(key, (n, 2), jnp.float32)
+    xy = centre[track] + jnp.einsum("nij,nj->ni", chol[track], z)
+    context = replace_slots(jax.random.fold_in(key, 1), context, mask, xy)
+    return context._replace(used=context.used + count)
+
+
+class SeedParams(NamedTuple):
+    """Numbers of :class:`RedetectionSeeds`.
+
+    Attributes:
+        seed_fraction: share of the particles moved to a re-detected track.
+        seed_std: their spread about the re-detected position, metres.
+    """
+
+    seed_fraction: float = 0.5
+    seed_std: float = 0.05
+
+
+@dataclass(frozen=True)
+class RedetectionSeeds:
+    """Particles seeded where the long-term memory re-detects a lost track, before the step's weighting.
+
+    Attributes:
+        max_seeded: at most this many re-detected tracks get seeds each step, those observed on most steps.
+        name: the injector's name.
+    """
+
+    max_seeded: int = 1
+    name: str = "seeds"
+
+    def validate(self) -> None:
+        if not isinstance(self.max_seeded, int) or isinstance(self.max_seeded, bool) or self.max_seeded < 1:
+            raise ValueError(f"max_seeded: must be a positive integer, got {self.max_seeded!r}")
+
+    def default_params(self) -> SeedParams:
+        return SeedParams()
+
+    def properties(self) -> SeedParams:
+        return SeedParams(seed_fraction=unit_interval(high_closed=False, trainable=False), seed_std=nonnegative())
+
+    def seed(self, key: PRNGKeyArray, context: InjectionContext, params: SeedParams) -> InjectionContext:
+        """Moves particles of least support (``context.rank``) to the re-detected tracks of ``context.recall``."""
+        recall = context.recall
+        if recall is None or recall.redetected.shape[0] == 0:
+            raise ValueError("injectors: RedetectionSeeds needs a long-term memory (--set memory=tracks)")
+        chosen = _most_observed(recall.redetected, recall.hits, self.max_seeded)
+        m = chosen.shape[0]
+        chol = jnp.broadcast_to(params.seed_std * jnp.eye(2, dtype=jnp.float32), (m, 2, 2))
+        return _around(key, context, chosen, recall.xy, chol, params.seed_fraction)
+
+    def inject(self, key: PRNGKeyArray, context: InjectionContext, params: SeedParams) -> InjectionContext:
+        """Nothing after resampling: the seeds act before the weighting (:meth:`seed`)."""
+        del key, params
+        return context

@@ -17,6 +17,12 @@ small, with ``capacity`` slots, each a constant-velocity Kalman filter over ``(x
    (or in the oldest one's);
 6. **forget**: a track unobserved for more than ``memory_forget`` seconds (2 s in the paper) is dropped.
 
+Before the particles are weighted, :meth:`TrackMemory.recall` looks at this step's buffer for the tracks
+the filter had lost (predicted to now, re-detected as in step 4): the paper's memory re-detects
+vanished objects "using their new position as a new initial position for object tracking", and
+:class:`~heatpf_jax.injection_memory.RedetectionSeeds` seeds particles there in the same step, so the
+frame on which the ball is seen again already weighs particles on it.
+
 A track is *lost* by the filter when it is confirmed (observed on ``memory_confirm`` steps or more) and
 no candidate of the filter's was associated to it this step (re-detected or not);
 :class:`~heatpf_jax.injection_memory.MemoryHints` then injects b hint particles around its position,
@@ -43,6 +49,7 @@ from heatpf_jax.params import integer, positive
 
 __all__ = [
     "MemoryParams",
+    "Recall",
     "NoMemory",
     "TrackMemory",
     "TrackTable",
@@ -111,6 +118,21 @@ def candidates_from(modes, estimate_mean: Float[Array, "2"]) -> tuple[Float[Arra
     if modes.mean.shape[0] == 0:
         return jnp.asarray(estimate_mean, jnp.float32)[None, :], jnp.ones((1,), bool)
     return modes.mean, modes.valid
+
+
+class Recall(NamedTuple):
+    """The lost tracks the memory re-detects in this step's buffer, before the filter weighs its particles.
+
+    Attributes:
+        redetected: ``bool [M]`` tracks that nothing observed last step (lost by the filter and not
+            re-detected by the memory either) and that this step's measurements re-detect: a reappearance.
+        xy: ``float32 [M, 2]`` where: the re-detecting measurements' weighted centroid.
+        hits: ``int32 [M]`` the tracks' observation counts (how established each is).
+    """
+
+    redetected: Bool[Array, " m"]
+    xy: Float[Array, "m 2"]
+    hits: Int[Array, " m"]
 
 
 class MemoryParams(NamedTuple):
@@ -312,6 +334,9 @@ class NoMemory:
     def lost(self, tracks: TrackTable, params) -> Bool[Array, " m"]:
         return tracks.valid
 
+    def recall(self, tracks, buffer, ego, dt, params) -> Recall:
+        return Recall(jnp.zeros((0,), bool), jnp.zeros((0, 2), jnp.float32), jnp.zeros((0,), jnp.int32))
+
 
 @dataclass(frozen=True)
 class TrackMemory:
@@ -362,3 +387,13 @@ class TrackMemory:
     def lost(self, tracks: TrackTable, params: MemoryParams) -> Bool[Array, " m"]:
         """The tracks the filter has lost this step (they get hints)."""
         return lost_tracks(tracks, params.memory_confirm)
+
+    def recall(
+        self, tracks: TrackTable, buffer: Measurements, ego: Float[Array, "3"], dt, params: MemoryParams
+    ) -> Recall:
+        """The tracks lost at the end of the previous step (``tracks``), predicted by ``dt`` and ``ego``, that
+        :func:`redetect` finds in this step's ``buffer`` (the state is not changed: :meth:`update` does that)."""
+        lost = lost_tracks(tracks, params.memory_confirm) & (tracks.age > 0)  # unseen last step, by anyone
+        predicted = predict_tracks(tracks, jnp.asarray(dt, jnp.float32), ego, params.memory_accel_std)
+        again, centroid = redetect(predicted, lost, buffer, params)
+        return Recall(redetected=again, xy=centroid, hits=tracks.hits)

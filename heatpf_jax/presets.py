@@ -24,7 +24,7 @@ from heatpf_jax.estimate import TopFraction, TopFractionParams
 from heatpf_jax.estimate_modes import DominantMode
 from heatpf_jax.filter import Filter, FilterParams
 from heatpf_jax.injection import ExplorerParams, GaussianExplorers, RandomParticles, UniformBox, UniformExplorers
-from heatpf_jax.injection_memory import MemoryHints
+from heatpf_jax.injection_memory import MemoryHints, RedetectionSeeds
 from heatpf_jax.injection_sensor import MeasurementExplorers
 from heatpf_jax.memory import NoMemory, TrackMemory
 from heatpf_jax.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
@@ -186,10 +186,11 @@ def _memory(options: FilterOptions):
 
 
 def _with_hints(model: Filter) -> Filter:
-    """``model`` with memory hints as its last injector when it has a long-term memory (Olufs 3.4)."""
+    """``model`` with memory hints and re-detection seeds as its last injectors when it has a long-term
+    memory (Olufs 3.4)."""
     if isinstance(model.memory, NoMemory):
         return model
-    return model._replace(injectors=(*model.injectors, MemoryHints()))
+    return model._replace(injectors=(*model.injectors, MemoryHints(), RedetectionSeeds()))
 
 
 def _pixels(options: FilterOptions) -> PixelSource:

@@ -8,10 +8,11 @@ import pytest
 
 import heatpf_jax as hp
 from heatpf_jax.injection import InjectionContext
-from heatpf_jax.injection_memory import HintParams, MemoryHints
+from heatpf_jax.injection_memory import HintParams, MemoryHints, RedetectionSeeds, SeedParams
 from heatpf_jax.measurements import Measurements
 from heatpf_jax.memory import (
     MemoryParams,
+    Recall,
     TrackMemory,
     TrackTable,
     empty_tracks,
@@ -184,15 +185,69 @@ def test_hints_land_around_lost_tracks_with_their_spread():
     assert moved.sum() == 400 and np.allclose(xy[moved].mean(0), [1.0, -2.0], atol=0.04)
 
 
-def test_filter_with_memory_runs_vmaps_and_reports_tracks():
-    seq, truth_info = simulate_with_info("occlusion", 1, num_steps=60, shrink=4)
+def test_recall_finds_reappearing_lost_tracks_only():
+    """Before the weighting, the memory re-detects the tracks nobody saw last step (NumPy Mahalanobis gate)."""
+    rng = np.random.default_rng(3)
+    tracks = _table(rng, 4)._replace(
+        mean=jnp.array([[2.0, 0.0, 1.0, 0.0], [4.0, 1.0, 0, 0], [0.0, -3.0, 0, 0], [6.0, 6.0, 0, 0]], jnp.float32),
+        cov=jnp.broadcast_to(0.01 * jnp.eye(4, dtype=jnp.float32), (4, 4, 4)),
+        age=jnp.array([1.0, 0.0, 1.0, 1.0], jnp.float32),  # track 1 was re-detected last step
+        found=jnp.array([False, False, False, True]),  # track 3 was found by the filter
+        hits=jnp.array([9, 9, 2, 9], jnp.int32),  # track 2 is not confirmed
+    )
+    dt, ego = 0.1, jnp.zeros((3,), jnp.float32)
+    xy = np.array([[2.12, 0.02], [2.08, -0.03], [4.0, 1.0], [0.0, -3.0], [6.0, 6.0], [9.0, 9.0]], np.float32)
+    buf = Measurements(xy=jnp.asarray(xy), weight=jnp.full((6,), 0.8, jnp.float32), valid=jnp.ones((6,), bool),
+                       footprint=jnp.zeros((6, 2, 2), jnp.float32))
+    recall = TrackMemory(4).recall(tracks, buf, ego, dt, PARAMS)
+    np.testing.assert_array_equal(recall.redetected, [True, False, False, False])
+    # Track 0 predicted to (2.1, 0): both nearby measurements, at their weighted centroid.
+    pred = predict_tracks(tracks, jnp.float32(dt), ego, jnp.float32(PARAMS.memory_accel_std))
+    s = np.asarray(pred.cov[0, :2, :2], np.float64) + PARAMS.memory_obs_std**2 * np.eye(2)
+    d = xy - np.asarray(pred.mean[0, :2])
+    near = np.einsum("ni,ij,nj->n", d, np.linalg.inv(s), d) <= PARAMS.memory_redetect_sigmas**2
+    assert near.sum() == 2
+    np.testing.assert_allclose(recall.xy[0], xy[near].mean(0), atol=1e-5)
+    empty = buf._replace(valid=jnp.zeros((6,), bool))
+    assert TrackMemory(4).recall(tracks, empty, ego, dt, PARAMS).redetected.sum() == 0
+
+
+def test_seeds_move_the_least_supported_particles_to_the_most_observed_reappearance():
+    n = 2000
+    recall = Recall(redetected=jnp.array([True, True, False]),
+                              xy=jnp.array([[3.0, 1.0], [-1.0, 2.0], [7.0, 7.0]], jnp.float32),
+                              hits=jnp.array([5, 12, 30], jnp.int32))
+    rank = jnp.asarray(np.random.default_rng(1).permutation(n), jnp.int32)
+    context = InjectionContext(
+        particles=Particles(xy=jnp.full((n, 2), 50.0, jnp.float32)),
+        log_weights=jnp.full((n,), -np.log(n), jnp.float32) - 3.0,
+        rank=rank, used=jnp.int32(0), estimate=None, motion=RandomWalk(),
+        motion_params=RandomWalk().default_params(), recall=recall,
+    )
+    out = RedetectionSeeds().seed(jax.random.key(0), context, SeedParams(seed_fraction=0.25, seed_std=0.1))
+    xy = np.asarray(out.particles.xy)
+    moved = np.any(xy != 50.0, axis=1)
+    assert moved.sum() == 500 and int(out.used) == 500
+    assert np.all(np.asarray(rank)[moved] >= n - 500)  # the least supported slots
+    np.testing.assert_allclose(xy[moved].mean(0), [-1.0, 2.0], atol=0.02)  # track 1: most hits of the re-detected
+    np.testing.assert_allclose(xy[moved].std(0), [0.1, 0.1], rtol=0.15)
+    np.testing.assert_allclose(np.asarray(out.log_weights)[moved], -np.log(n), rtol=1e-6)
+    np.testing.assert_array_equal(np.asarray(out.log_weights)[~moved], np.asarray(context.log_weights)[~moved])
+    assert RedetectionSeeds().inject(jax.random.key(0), context, SeedParams()) is context  # after resampling: nothing
+    with pytest.raises(ValueError, match="^injectors: RedetectionSeeds needs a long-term memory"):
+        RedetectionSeeds().seed(jax.random.key(0), context._replace(recall=None), SeedParams())
+
+
+def test_filter_with_memory_runs_vmaps_reports_tracks_and_reacquires_at_once():
+    seq, truth_info = simulate_with_info("occlusion", 1, num_steps=120, shrink=4)
     m = build("paper", FilterOptions(num_particles=128, max_measurements=128, memory="tracks", max_tracks=3))
-    assert isinstance(m.model.memory, TrackMemory) and m.model.injectors[-1].name == "hints"
+    assert isinstance(m.model.memory, TrackMemory)
+    assert [inj.name for inj in m.model.injectors[-2:]] == ["hints", "seeds"]
     batch = hp.stack_params([m.params, m.model.make_params(memory_gate=0.5)])
     info = jax.vmap(lambda p: hp.run(jax.random.key(0), seq, p, m.model).info)(batch)
     res_info = jax.tree.map(lambda x: x[0], info)
     tracks = res_info.tracks
-    assert tracks.valid.shape == (60, 3)
+    assert tracks.valid.shape == (120, 3)
     visible = truth_info["visible"]
     # While the ball is seen, one track follows it.
     ids = np.asarray(tracks.id)
@@ -203,6 +258,15 @@ def test_filter_with_memory_runs_vmaps_and_reports_tracks():
     filter_error = np.linalg.norm(np.asarray(res_info.mean)[seen] - seq.ground_truth[seen], axis=1)
     assert np.median(nearest) < 1.5 * np.median(filter_error) + 0.05, (np.median(nearest), np.median(filter_error))
     assert np.all(ids[tracks.valid] > 0)
+    # After the last, 1.1 s occlusion the memory re-detects the ball and seeds particles on it: the filter is
+    # on the ball on the first step it is seen again. Without the seeds (hints alone) it is not yet.
+    back = int(np.flatnonzero(~visible[:-1] & visible[1:])[-1]) + 1
+    assert not visible[back - 10 : back].any()
+    error = np.linalg.norm(np.asarray(res_info.mean)[back] - seq.ground_truth[back])
+    hints_only = m.model._replace(injectors=m.model.injectors[:-1])
+    params = m.params._replace(injectors={k: v for k, v in m.params.injectors.items() if k != "seeds"})
+    late = np.asarray(hp.run(jax.random.key(0), seq, params, hints_only).info.mean)
+    assert error < 0.3 < np.linalg.norm(late[back] - seq.ground_truth[back]), (error, late[back])
 
 
 def test_memory_options_are_checked():
