@@ -8,6 +8,10 @@ seeds, and the ratio colour / FCNN.
 
     python benchmarks/colour_vs_fcnn.py                          # standard, seeds 0-4
     python benchmarks/colour_vs_fcnn.py --scenario turning --seeds 100:103
+
+``--centroids`` also prints what limits the colour maps: per frame where the ball is visible, the
+weighted centroid of each map's pixels above the filter's threshold within 15 px of the ball's true
+image position, against that position (bias and spread in pixels, and the pixels used).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import argparse
 
 import jax
 import numpy as np
-from table1_rgb import THRESHOLD, reference_box
+from table1_rgb import THRESHOLD, reference_box, to_image
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
@@ -26,12 +30,30 @@ from heatpf_jax.settings import parse_seeds
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 
+def centroid_offsets(maps: np.ndarray, threshold: float, truth_px: np.ndarray, visible: np.ndarray,
+                     radius: float = 15.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per visible frame, ``(centroid - truth [n, 2], pixels used [n])`` of the map's pixels above
+    ``threshold`` within ``radius`` px of the ball's true image position (frames without any: skipped)."""
+    vv, uu = np.mgrid[0:maps.shape[1], 0:maps.shape[2]]
+    offsets, counts = [], []
+    for t in np.flatnonzero(visible):
+        u, v = truth_px[t]
+        sel = (maps[t] > threshold) & ((uu - u) ** 2 + (vv - v) ** 2 < radius**2)
+        if sel.any():
+            w = maps[t][sel]
+            offsets.append([w @ uu[sel] / w.sum() - u, w @ vv[sel] / w.sum() - v])
+            counts.append(sel.sum())
+    return np.asarray(offsets), np.asarray(counts)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="standard")
     parser.add_argument("--seeds", default="0:5")
     parser.add_argument("--methods", default="heatmap,extended")
+    parser.add_argument("--centroids", action="store_true", help="also the maps' centroid bias and spread [px]")
     args = parser.parse_args(argv)
+    offsets = {"fcnn": [], "colour": []}
     seeds = parse_seeds(args.seeds, 5)
     errors = {(m, kind): [] for m in args.methods.split(",") for kind in ("fcnn", "colour")}
     for seed in seeds:
@@ -40,6 +62,13 @@ def main(argv=None) -> int:
         q = smooth_intensity(patch_histogram(seq.images[t0], box))
         heat = np.asarray(colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius,
                                           ColourParams(), top_bins=exact_top_bins(q)))
+        if args.centroids:
+            truth_px = to_image(seq.ground_truth, seq, info["true_cam_to_base"])
+            visible = info["visible"].copy()
+            visible[:10] = False
+            fcnn_threshold = float(hp.build(args.methods.split(",")[0])[1].source.threshold)
+            for kind, maps, thr in (("fcnn", seq.heatmaps, fcnn_threshold), ("colour", heat, THRESHOLD)):
+                offsets[kind].append(centroid_offsets(np.asarray(maps), thr, truth_px, visible))
         for method in args.methods.split(","):
             model, params = hp.build(method)
             colour_params = P.set_by_name(params, model.properties(), {"threshold": THRESHOLD})
@@ -52,6 +81,14 @@ def main(argv=None) -> int:
         f, c = np.array(errors[(method, "fcnn")]), np.array(errors[(method, "colour")])
         per_seed = " ".join(f"{r:.2f}" for r in c / f)
         print(f"{method:10s} {f.mean():10.4f} {c.mean():12.4f} {c.mean() / f.mean():6.2f}   {per_seed}")
+    if args.centroids:
+        print("map centroids near the ball against its true image position [px] (u: column, v: row, down)")
+        print(f"{'maps':7s} {'frames':>6s} {'bias u':>7s} {'bias v':>7s} {'std u':>6s} {'std v':>6s} {'pixels':>7s}")
+        for kind, parts in offsets.items():
+            d = np.concatenate([o for o, _ in parts])
+            n = np.concatenate([c for _, c in parts])
+            print(f"{kind:7s} {len(d):6d} {d[:, 0].mean():7.3f} {d[:, 1].mean():7.3f} {d[:, 0].std():6.3f} "
+                  f"{d[:, 1].std():6.3f} {np.median(n):7.0f}")
     return 0
 
 
