@@ -536,8 +536,9 @@ def _print_best(out: Path, record, columns: list[str], top: int, burn_in: int) -
 
 
 def _option_choices() -> dict[str, str]:
+    from heatpf_jax.ego import EGO_MOTIONS
     from heatpf_jax.observation import KNN_METHODS
-    from heatpf_jax.presets import MODE_FINDERS, OBSERVATIONS, RESAMPLERS, SPAWNS
+    from heatpf_jax.presets import MEMORIES, MODE_FINDERS, OBSERVATIONS, RESAMPLERS, SPAWNS
 
     return {
         "resampler": "one of " + ", ".join(sorted(RESAMPLERS)),
@@ -546,6 +547,8 @@ def _option_choices() -> dict[str, str]:
         "observation": "one of auto, " + ", ".join(OBSERVATIONS),
         "modes": "one of " + ", ".join(MODE_FINDERS),
         "knn": "one of " + ", ".join(KNN_METHODS),
+        "ego": "one of " + ", ".join(EGO_MOTIONS),
+        "memory": "one of " + ", ".join(MEMORIES),
     }
 
 

@@ -368,6 +368,9 @@ def test_params_lists_every_parameter_and_option(method, capsys):
     for field, default in hp.FilterOptions._field_defaults.items():
         row = next(line.split() for line in lines if line.split()[:1] == [field])
         assert row[1] == (",".join(map(str, default)) if isinstance(default, tuple) else str(default))
+    # Named options list their names, not "a positive integer".
+    rows = {line.split()[0]: line for line in lines if line.split()[:1] in (["ego"], ["memory"])}
+    assert "one of odometry, none, pose" in rows["ego"] and "one of none, tracks" in rows["memory"]
     # Settings show through: a Gaussian observation has its own parameter.
     assert main(["params", "--set", "observation=gaussian", "--set", "diffusion_std=0.5"]) == 0
     shown = capsys.readouterr().out
