@@ -14,7 +14,7 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
-  4 track slots, re-detection, hint particles; issue 12's speed check).
+  4 track slots, re-detection, hint particles and re-detection seeds; issue 12's speed check).
 
 Run: ``.venv/bin/python benchmarks/bench_extended.py [--sizes 500x1024] [--repeats 200] [--threads 1]``
 """
