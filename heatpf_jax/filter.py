@@ -160,8 +160,9 @@ class Filter(NamedTuple):
         observation: observation model (:mod:`heatpf_jax.observation`).
         estimator: output (:mod:`heatpf_jax.estimate`).
         resampling: resampling strategy (:mod:`heatpf_jax.resampling`).
-        injectors: injectors applied in order after resampling (:mod:`heatpf_jax.injection`);
-            their ``name`` attributes must differ.
+        injectors: injectors applied in order after resampling (:mod:`heatpf_jax.injection`); those with
+            a ``seed`` method also act before the weighting (:class:`~heatpf_jax.injection_memory.RedetectionSeeds`).
+            Their ``name`` attributes must differ.
         initial: initial distribution of the particles (a :class:`~heatpf_jax.injection.UniformBox`).
         num_particles: N.
         modes: multi-modal output (:mod:`heatpf_jax.modes`), none by default.
