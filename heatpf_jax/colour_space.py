@@ -21,6 +21,7 @@ from jaxtyping import Array, ArrayLike, Float, Int, UInt8, UInt16
 
 __all__ = [
     "DEFAULT_BINS",
+    "MAX_BOX_HALF",
     "MAX_BOX_PIXELS",
     "BinTable",
     "bin_table",
@@ -30,6 +31,7 @@ __all__ = [
     "num_bins",
     "patch_histogram",
     "rgi_bins",
+    "smooth_chromaticity",
     "smooth_intensity",
 ]
 
@@ -73,6 +75,7 @@ def rgi_bins(image: UInt8[ArrayLike, "h w 3"], bins: tuple[int, int, int] = DEFA
 
 
 MAX_BOX_PIXELS = 2**16 - 1  # box counts from a uint16 table are exact below this many pixels
+MAX_BOX_HALF = (math.isqrt(MAX_BOX_PIXELS) - 1) // 2  # 127: the largest square half-size below that (255 x 255)
 
 
 class BinTable(NamedTuple):
@@ -192,6 +195,26 @@ def patch_histogram(
     return histogram(rgi_bins(image, bins), num_bins(bins))
 
 
+def _smooth_along(h: Float[Array, "r g i"], axis: int, weight: float) -> Float[Array, "r g i"]:
+    """``h`` convolved with ``(weight, 1 - 2 weight, weight)`` along one axis; mass leaving the ends is dropped."""
+    pad = [(0, 0)] * 3
+    pad[axis] = (1, 1)
+    padded = jnp.pad(h, pad)
+    n = h.shape[axis]
+    before = lax.slice_in_dim(padded, 0, n, axis=axis)
+    after = lax.slice_in_dim(padded, 2, n + 2, axis=axis)
+    return (1.0 - 2.0 * weight) * h + weight * (before + after)
+
+
+def _smoothed(histogram_, bins, weights) -> Float[Array, " m"]:
+    h = jnp.asarray(histogram_, jnp.float32).reshape(bins)
+    for axis, weight in enumerate(weights):
+        if weight:
+            h = _smooth_along(h, axis, weight)
+    total = jnp.sum(h)
+    return (h / jnp.where(total > 0, total, 1.0)).reshape(-1)
+
+
 def smooth_intensity(
     histogram_: Float[ArrayLike, " m"], bins: tuple[int, int, int] = DEFAULT_BINS, weight: float = 0.25
 ) -> Float[Array, " m"]:
@@ -202,9 +225,18 @@ def smooth_intensity(
     matches it. Mass that would leave the first or last bin is dropped, then the result is
     renormalised.
     """
-    n_r, n_g, n_i = bins
-    h = jnp.asarray(histogram_, jnp.float32).reshape(n_r, n_g, n_i)
-    padded = jnp.pad(h, ((0, 0), (0, 0), (1, 1)))
-    out = (1.0 - 2.0 * weight) * h + weight * (padded[..., :-2] + padded[..., 2:])
-    total = jnp.sum(out)
-    return (out / jnp.where(total > 0, total, 1.0)).reshape(-1)
+    return _smoothed(histogram_, bins, (0.0, 0.0, weight))
+
+
+def smooth_chromaticity(
+    histogram_: Float[ArrayLike, " m"], bins: tuple[int, int, int] = DEFAULT_BINS, weight: float = 0.25
+) -> Float[Array, " m"]:
+    """The histogram smoothed along both chromaticity axes (``r'`` then ``g'``) with ``(weight, 1 - 2 weight,
+    weight)``, renormalised.
+
+    White and grey lie where the chromaticity bins meet (``r = g = b``): a slight colour cast of the light
+    (warmer or colder) moves a white ball's pixels into the neighbouring bins, which a reference taken under
+    another light has no mass in, and the ball drops out of the map. On rendered ``standard`` seed 4 the ball
+    went from bins (5, 5) at frame 0 to (6, 6) at frames 89-92 and the map's maximum fell to 0.0-0.12.
+    """
+    return _smoothed(histogram_, bins, (weight, weight, 0.0))

@@ -43,7 +43,7 @@ from heatpf_jax.memory import NoMemory, TrackTable
 from heatpf_jax.modes import Modes, NoModes
 from heatpf_jax.motion import RandomWalk, RandomWalkParams
 from heatpf_jax.motion_score import transition_log_weight
-from heatpf_jax.numerics import normalise_log, order_by_weight
+from heatpf_jax.numerics import normalise_log, order_by_weight, ranks_of
 from heatpf_jax.observation import InverseDistance, InverseDistanceParams
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.resampling import ESSParams, ESSResampling
@@ -259,8 +259,7 @@ class Filter(NamedTuple):
         if not seeders:
             return particles, state.log_weights
         recall = self.memory.recall(state.memory, buffer, ego_tracks, dt, params.memory)
-        order = jnp.argsort(-state.log_weights, stable=True)  # rank 0: most support; ties: the lower slot
-        rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
+        rank = ranks_of(jnp.argsort(-state.log_weights, stable=True))  # rank 0: most support; ties: the lower slot
         context = InjectionContext(
             particles=particles,
             log_weights=state.log_weights,

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
 
+from heatpf_jax.numerics import ranks_of
 from heatpf_jax.params import positive, unit_interval
 
 __all__ = [
@@ -67,9 +68,7 @@ def explorer_mask(support: Float[ArrayLike, " n"], fraction: Float[ArrayLike, ""
     support = jnp.asarray(support)
     n = support.shape[0]
     count = explorer_count(fraction, n)
-    order = jnp.argsort(support, stable=True)
-    rank = jnp.zeros((n,), jnp.int32).at[order].set(jnp.arange(n, dtype=jnp.int32))
-    return rank < count
+    return ranks_of(jnp.argsort(support, stable=True)) < count
 
 
 def explorer_count(fraction: Float[ArrayLike, ""], num: int) -> Array:

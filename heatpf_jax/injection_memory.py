@@ -29,6 +29,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Int, PRNGKeyArray
 
 from heatpf_jax.injection import InjectionContext, explorer_count, replace_slots, take_slots
+from heatpf_jax.numerics import ranks_of
 from heatpf_jax.params import nonnegative, unit_interval
 
 __all__ = ["HintParams", "MemoryHints", "RedetectionSeeds", "SeedParams"]
@@ -92,8 +93,7 @@ def _most_observed(mask: Bool[Array, " m"], hits: Int[Array, " m"], limit: int) 
     """``mask`` restricted to its ``limit`` tracks observed on most steps (ties: the lower slot)."""
     if limit >= mask.shape[0]:
         return mask
-    order = jnp.argsort(-jnp.where(mask, hits, -1), stable=True)
-    rank = jnp.zeros_like(order).at[order].set(jnp.arange(order.shape[0], dtype=order.dtype))
+    rank = ranks_of(jnp.argsort(-jnp.where(mask, hits, -1), stable=True))
     return mask & (rank < limit)
 
 

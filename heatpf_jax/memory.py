@@ -49,8 +49,8 @@ from heatpf_jax.params import integer, positive
 
 __all__ = [
     "MemoryParams",
-    "Recall",
     "NoMemory",
+    "Recall",
     "TrackMemory",
     "TrackTable",
     "candidates_from",

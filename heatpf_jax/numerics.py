@@ -9,7 +9,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float, Int
 
-__all__ = ["normalise_log", "order_by_weight", "safe_log", "safe_sqrt"]
+__all__ = ["normalise_log", "order_by_weight", "ranks_of", "safe_log", "safe_sqrt"]
 
 
 def safe_log(x: Float[Array, "..."]) -> Float[Array, "..."]:
@@ -31,6 +31,12 @@ def normalise_log(log_w: Float[Array, " n"], total: Float[Array, ""] | None = No
     total = jax.nn.logsumexp(log_w) if total is None else total
     n = log_w.shape[0]
     return jnp.where(jnp.isfinite(total), log_w - total, jnp.full_like(log_w, -math.log(n)))
+
+
+def ranks_of(order: Int[Array, " n"]) -> Int[Array, " n"]:
+    """The inverse permutation: ``rank[order[i]] = i`` (each slot's place in ``order``)."""
+    n = order.shape[0]
+    return jnp.zeros((n,), jnp.int32).at[order].set(jnp.arange(n, dtype=jnp.int32))
 
 
 def order_by_weight(weights: Float[Array, " n"]) -> Int[Array, " n"]:

@@ -43,7 +43,7 @@ from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray, UInt8
 
 from heatpf_jax.baselines.kalman import KalmanState, kalman_predict, kalman_update
-from heatpf_jax.colour_space import DEFAULT_BINS, bin_table, box_counts, num_bins, rgi_bins
+from heatpf_jax.colour_space import DEFAULT_BINS, MAX_BOX_HALF, bin_table, box_counts, num_bins, rgi_bins
 from heatpf_jax.params import make_params, nonnegative, positive, unit_interval
 from heatpf_jax.resampling import effective_sample_size, systematic
 
@@ -70,7 +70,6 @@ __all__ = [
 
 _F32 = jnp.float32
 _DBL_EPSILON = 2.220446049250313e-16
-_MAX_TABLE_HALF = 127  # window half-sizes for the uint16 summed-area tables: at most 255 x 255 < 2^16 pixels
 
 
 class Window(NamedTuple):
@@ -570,7 +569,7 @@ def window_histograms(
     tables = bin_table(image, q, top_bins, bins)
     centres = jnp.asarray(centres, _F32)
     half = jnp.round(jnp.broadcast_to(jnp.asarray(half_size, _F32), (2,)))
-    half = jnp.clip(half, 0.0, float(_MAX_TABLE_HALF)).astype(jnp.int32)
+    half = jnp.clip(half, 0.0, float(MAX_BOX_HALF)).astype(jnp.int32)
     cu = jnp.round(centres[:, 0]).astype(jnp.int32)
     cv = jnp.round(centres[:, 1]).astype(jnp.int32)
     x0, x1 = jnp.clip(cu - half[0], 0, w), jnp.clip(cu + half[0] + 1, 0, w)
