@@ -35,7 +35,7 @@ from heatpf_jax.baselines.image_trackers import (
     Window,
 )
 from heatpf_jax.colour_likelihood import ColourParams, colour_likelihood, expected_radius_px
-from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
+from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 
@@ -47,14 +47,14 @@ def main(argv=None) -> int:
     seq, info = simulate_with_info("standard", 0, num_steps=12, rgb=True)
     t = int(np.flatnonzero(info["visible"])[0])
     frame = jnp.asarray(seq.images[t])
-    q = smooth_intensity(patch_histogram(seq.images[t], (90, 60, 9, 9)))
+    q = smooth_chromaticity(smooth_intensity(patch_histogram(seq.images[t], (90, 60, 9, 9))))
     pose = jnp.asarray(seq.cam_to_base[t], jnp.float32)
     intr = jnp.asarray(seq.intrinsics, jnp.float32)
     params = ColourParams(window_scale=0.9)
     shape = frame.shape[:2]
     radius = jax.jit(expected_radius_px, static_argnums=3)(intr, pose, 0.075, shape)
     likelihood = jax.jit(colour_likelihood)
-    likelihood_k = jax.jit(colour_likelihood, static_argnames="top_bins")
+    likelihood_k = jax.jit(colour_likelihood, static_argnames=("top_bins", "blob_window"))
     exact = exact_top_bins(q)  # what `heatpf colour` uses: the reference's non-empty bins, rounded up to 2^n
     full = jax.jit(lambda f, p: colour_likelihood(f, q, expected_radius_px(intr, p, 0.075, shape), params))
     heat = likelihood(frame, q, radius, params)
@@ -71,6 +71,8 @@ def main(argv=None) -> int:
         "colour map (window given)": lambda k: likelihood(frame, q, radius, params),
         "colour map + window": lambda k: full(frame, pose),
         f"colour map, top_bins {exact} (exact)": lambda k: likelihood_k(frame, q, radius, params, top_bins=exact),
+        f"  one pass, top_bins {exact}": lambda k: likelihood_k(frame, q, radius, params, top_bins=exact,
+                                                               blob_window=False),
         "heatmap step on the colour map": lambda k: step(model, k, state, inputs, fparams),
     }
     for name, tracker in (("mean shift step", MeanShiftTracker()), ("mean shift + KF step", KalmanMeanShiftTracker()),

@@ -5,8 +5,8 @@ Tours (the simulator's scenarios rendered in RGB, `simulate(..., rgb=True)`): A 
 ranging over 0.5-7 m in front of a standing robot), B `shot` (shots at 5-8 m/s, bounces), C `turning`
 (the robot turns in place) and D `false_positives` (white ball-like discs on the field). Every tracker
 gets the same reference histogram: the r'g'I histogram of a box (0.7 ball radii) around the ball in the
-first frame where it is visible, smoothed along the intensity bins. The image-space trackers also get
-the ball's true image position and size in that frame (the paper's contestants are started on the
+first frame where it is visible, smoothed along the intensity and the chromaticity bins. The image-space
+trackers also get the ball's true image position and size in that frame (the paper's contestants are started on the
 object and never re-detect it); our filters start from their uniform prior.
 
 * ``mean shift``: Comaniciu et al.'s tracker with an elliptical window of the first frame's ball radius;
@@ -37,7 +37,7 @@ from heatpf_jax import params as P
 from heatpf_jax.baselines.image_trackers import ColourParticleTracker, KalmanMeanShiftTracker, MeanShiftTracker, track
 from heatpf_jax.camera import project_pixel
 from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
+from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.settings import parse_seeds
 from heatpf_jax.sim.render import project_centre
 from heatpf_jax.sim.scenarios import simulate_with_info
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
         for seed in seeds:
             seq, info = simulate_with_info(scenario, seed, num_steps=args.steps, rgb=True)
             t0, box, uv0, r0 = reference_box(seq, info)
-            q = smooth_intensity(patch_histogram(seq.images[t0], box))
+            q = smooth_chromaticity(smooth_intensity(patch_histogram(seq.images[t0], box)))
             cams = info["true_cam_to_base"]
             truth_px = to_image(seq.ground_truth, seq, cams)
             seen = info["visible"].copy()

@@ -74,7 +74,7 @@ def read_reference_image(path: str | Path) -> np.ndarray:
 
 def cmd_colour(args: argparse.Namespace) -> int:
     from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-    from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_intensity
+    from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
     from heatpf_jax.sequence import load_sequence, save_sequence
 
     check_input(args.input)
@@ -90,6 +90,8 @@ def cmd_colour(args: argparse.Namespace) -> int:
         raise ValueError(f"--window-scale: must be positive, got {args.window_scale}")
     if not 0.0 <= args.smoothing < 0.5:
         raise ValueError(f"--smoothing: must lie in [0, 0.5), got {args.smoothing}")
+    if not 0.0 <= args.chroma_smoothing < 0.5:
+        raise ValueError(f"--chroma-smoothing: must lie in [0, 0.5), got {args.chroma_smoothing}")
     reference_image = None if args.reference is None else read_reference_image(args.reference)
     if reference_image is not None and box is not None:
         _check_box(box, reference_image.shape[:2], f"the reference image {args.reference}")
@@ -104,7 +106,7 @@ def cmd_colour(args: argparse.Namespace) -> int:
         q = patch_histogram(seq.images[args.frame], box)
     else:
         q = patch_histogram(reference_image, box)
-    q = smooth_intensity(q, weight=args.smoothing)
+    q = smooth_chromaticity(smooth_intensity(q, weight=args.smoothing), weight=args.chroma_smoothing)
     params = ColourParams(theta=args.theta, window_scale=args.window_scale)
     start = time.perf_counter()
     heat = colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, params,
@@ -138,5 +140,7 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
                    "ball radius in pixels (default 0.9)")
     p.add_argument("--smoothing", type=float, default=0.25, help="reference smoothing along the intensity bins, "
                    "for lighting changes (default 0.25)")
+    p.add_argument("--chroma-smoothing", type=float, default=0.25, help="reference smoothing along the r' and g' "
+                   "bins, for a colour cast of the light on a white or grey object (default 0.25; 0: none)")
     p.set_defaults(func=cmd_colour)
     return p

@@ -6,7 +6,7 @@ from PIL import Image
 
 from heatpf_jax.cli import main
 from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-from heatpf_jax.colour_space import patch_histogram, smooth_intensity
+from heatpf_jax.colour_space import num_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sequence import load_sequence, save_sequence
 from heatpf_jax.sim import simulate
 
@@ -30,8 +30,9 @@ def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
     out = tmp_path / "colour.npz"
     assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(out)]) == 0
     got = load_sequence(out)
-    q = smooth_intensity(patch_histogram(seq.images[1], (20, 10, 4, 4)))
-    want = colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, ColourParams())
+    q = smooth_chromaticity(smooth_intensity(patch_histogram(seq.images[1], (20, 10, 4, 4))))
+    want = colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, ColourParams(),
+                           top_bins=num_bins())  # every bin: exact whatever the command's table size
     np.testing.assert_allclose(got.heatmaps, np.asarray(want), atol=1e-6)
     np.testing.assert_array_equal(got.images, seq.images)
     np.testing.assert_array_equal(got.ground_truth, seq.ground_truth)
@@ -59,6 +60,7 @@ def test_reference_images_png_and_npy(tmp_path, rgb_file):
     (["--box", "1,1,4,4", "--frame", "9"], "--frame: must be in [0, 3]"),
     (["--box", "1,1,4,4"], "--reference: give a reference image"),
     (["--box", "1,1,4,4", "--frame", "0", "--theta", "1.0"], "--theta: must lie in [0, 1)"),
+    (["--box", "1,1,4,4", "--frame", "0", "--chroma-smoothing", "0.5"], "--chroma-smoothing: must lie in [0, 0.5)"),
 ])
 def test_bad_arguments_are_one_line_errors(tmp_path, rgb_file, capsys, args, message):
     path, _ = rgb_file

@@ -6,13 +6,28 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.ndimage import convolve1d
 
 from heatpf_jax.camera import camera_pose
-from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps, colour_likelihood, expected_radius_px
-from heatpf_jax.colour_space import exact_top_bins, histogram, num_bins, patch_histogram, rgi_bins, smooth_intensity
+from heatpf_jax.colour_likelihood import (
+    ColourParams,
+    blob_half_size,
+    colour_heatmaps,
+    colour_likelihood,
+    expected_radius_px,
+)
+from heatpf_jax.colour_space import (
+    exact_top_bins,
+    histogram,
+    num_bins,
+    patch_histogram,
+    rgi_bins,
+    smooth_chromaticity,
+    smooth_intensity,
+)
 
 M = num_bins()
-_likelihood = jax.jit(colour_likelihood, static_argnames=("bins", "top_bins"))
+_likelihood = jax.jit(colour_likelihood, static_argnames=("bins", "top_bins", "blob_window"))
 
 
 def _scene(rng, h=24, w=32, centre=(12, 15), radius=4.0):
@@ -49,6 +64,27 @@ def _brute_force(image, q, half, params):
     return out
 
 
+def _brute_blob_half(first, half, reach):
+    """Each pixel's ``half`` at the weighted centroid of ``first`` in its square of half-size round(reach * half)."""
+    h, w = first.shape
+    out = half.astype(float).copy()
+    for v in range(h):
+        for u in range(w):
+            r = max(int(np.round(reach * half[v, u])), 1)
+            win = first[max(v - r, 0): v + r + 1, max(u - r, 0): u + r + 1].astype(float)
+            if half[v, u] <= 0 or win.sum() <= 1e-6:
+                continue
+            vv, uu = np.mgrid[max(v - r, 0): min(v + r + 1, h), max(u - r, 0): min(u + r + 1, w)]
+            cu, cv = (win * uu).sum() / win.sum(), (win * vv).sum() / win.sum()
+            if min(abs(cu % 1 - 0.5), abs(cv % 1 - 0.5)) < 1e-3:  # a rounding tie: float32 may go either way
+                out[v, u] = np.nan
+                continue
+            at = half[int(np.round(cv)), int(np.round(cu))]
+            if at > 0:
+                out[v, u] = at
+    return out
+
+
 def test_bins_and_histograms_against_numpy(rng):
     img = rng.integers(0, 256, (9, 11, 3), dtype=np.uint8)
     img[0] = img[0, :, :1]  # greys: r = g = b, at the middle of the chromaticity range
@@ -68,6 +104,9 @@ def test_bins_and_histograms_against_numpy(rng):
     k = np.array([0.25, 0.5, 0.25])
     want = np.stack([np.convolve(row, k, mode="same") for row in q.reshape(-1, 4)]).ravel()
     np.testing.assert_allclose(smooth_intensity(q), want / want.sum(), rtol=1e-5, atol=1e-8)
+    # Along r' and g': scipy's convolution with zero padding, renormalised.
+    want = convolve1d(convolve1d(q.reshape(12, 12, 4), k, axis=0, mode="constant"), k, axis=1, mode="constant")
+    np.testing.assert_allclose(smooth_chromaticity(q), want.ravel() / want.sum(), rtol=1e-5, atol=1e-8)
 
 
 @pytest.mark.parametrize("top_bins", [M, 64, "exact"])
@@ -81,8 +120,27 @@ def test_likelihood_against_brute_force(rng, top_bins):
         assert top_bins == max(8, 2 ** int(np.ceil(np.log2(nonzero)))) and top_bins < 64, (top_bins, nonzero)
     half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)  # every size, and 0 (no ball possible)
     params = ColourParams(theta=0.15, window_scale=0.8, ring_scale=2.0, min_half_size=1.0, max_half_size=4.0)
-    got = np.asarray(_likelihood(image, jnp.asarray(q, jnp.float32), half, params, top_bins=top_bins))
-    np.testing.assert_allclose(got, _brute_force(image, q, half, params), atol=2e-5)
+    q32 = jnp.asarray(q, jnp.float32)
+    got = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins, blob_window=False))
+    first = _brute_force(image, q, half, params)
+    np.testing.assert_allclose(got, first, atol=2e-5)
+    # The second pass: every pixel's window from the first map's local centroid.
+    half2 = _brute_blob_half(first, half, params.blob_reach)
+    assert np.isfinite(half2).all() and np.any(half2 != half)  # no rounding ties; the windows did move
+    got2 = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins))
+    np.testing.assert_allclose(got2, _brute_force(image, q, half2, params), atol=2e-5)
+
+
+def test_blob_half_size_against_brute_force(rng):
+    first = rng.uniform(size=(20, 26)) * (rng.uniform(size=(20, 26)) < 0.15)  # sparse responses
+    first[12:15, 3:6] = 0.0
+    half = np.broadcast_to(np.linspace(0.0, 6.0, 20)[:, None], (20, 26)).astype(np.float32)  # 0 rows: no ball
+    for reach in (1.0, 2.5):
+        want = _brute_blob_half(first, half, reach)
+        got = np.asarray(jax.jit(blob_half_size)(first, half, reach))
+        ok = np.isfinite(want)
+        assert ok.mean() > 0.95
+        np.testing.assert_array_equal(got[ok], want[ok].astype(np.float32))
 
 
 def test_map_peaks_at_the_ball_and_stays_low_without_it(rng):
