@@ -116,13 +116,18 @@ def expected_radius_px(
     return jnp.where(ok & front_l & front_r, 0.5 * (left + right), 0.0)
 
 
-def _box_sums(table, radius, shape):
-    """Per pixel, the bin counts and pixel count of the square of half-size ``radius`` around it."""
+def _boxes(radius, shape):
+    """Per pixel, the rows ``[y0, y1)`` and columns ``[x0, x1)`` of the square of half-size ``radius`` around it,
+    clipped to the image."""
     h, w = shape
     v, u = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
     r = radius.astype(jnp.int32)
-    y0, y1 = jnp.clip(v - r, 0, h), jnp.clip(v + r + 1, 0, h)
-    x0, x1 = jnp.clip(u - r, 0, w), jnp.clip(u + r + 1, 0, w)
+    return jnp.clip(v - r, 0, h), jnp.clip(v + r + 1, 0, h), jnp.clip(u - r, 0, w), jnp.clip(u + r + 1, 0, w)
+
+
+def _box_sums(table, radius, shape):
+    """Per pixel, the bin counts and pixel count of the square of half-size ``radius`` around it."""
+    y0, y1, x0, x1 = _boxes(radius, shape)
     return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
 
 
@@ -169,11 +174,7 @@ def blob_half_size(
     # map stay exact to ~1e-5 relative in a window.
     stack = jnp.stack([first, first * u, first * v], axis=-1)
     table = jnp.pad(jnp.cumsum(jnp.cumsum(stack, axis=0), axis=1), ((1, 0), (1, 0), (0, 0)))
-    r = jnp.maximum(jnp.round(reach * radius), 1.0).astype(jnp.int32)
-    iv, iu = v.astype(jnp.int32), u.astype(jnp.int32)
-    y0, y1 = jnp.clip(iv - r, 0, h), jnp.clip(iv + r + 1, 0, h)
-    x0, x1 = jnp.clip(iu - r, 0, w), jnp.clip(iu + r + 1, 0, w)
-    sums = table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]
+    sums = box_counts(table, *_boxes(jnp.maximum(jnp.round(reach * radius), 1.0), (h, w)))
     mass = sums[..., 0]
     found = mass > 1e-6
     safe = jnp.where(found, mass, 1.0)
