@@ -109,7 +109,18 @@ from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
 from heatpf_jax.tracker import Tracker
 from heatpf_jax.tuning import Checkpointed, TuneResult, differentiable, mse_loss, nll_loss, trainable_names, tune
 
-__version__ = "0.1.0"
+
+def _version() -> str:
+    """The installed distribution's version (``pyproject.toml``); ``0+unknown`` from a source tree not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("heatpf-jax")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+__version__ = _version()
 
 __all__ = [
     "AgingBuffer",

@@ -15,6 +15,7 @@ import argparse
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -662,8 +663,17 @@ def _global_options() -> argparse.ArgumentParser:
     return parent
 
 
+class _Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose usage errors are one line (``heatpf run: error: ...``), not a usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    from heatpf_jax import __version__
+
+    parser = _Parser(
         prog="heatpf",
         description="Heat-map particle filter in Cartesian space (JAX).",
         epilog="Compiled programs are cached on disk (~/.cache/heatpf_jax/jax; $HEATPF_CACHE_DIR moves it), so a "
@@ -672,6 +682,7 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-cache", dest="no_cache_global", action="store_true", help="as the subcommands' --no-cache"
     )
+    parser.add_argument("--version", action="version", version=f"heatpf {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     parent = [_global_options()]
     scenarios = ", ".join(scenario_names())
@@ -766,13 +777,18 @@ def _build_parser() -> argparse.ArgumentParser:
     from heatpf_jax import cli_rgb, rosbag_import
 
     cli_rgb.add_parser(sub, parent)
-    rosbag_import.add_parser(sub)
+    rosbag_import.add_parser(sub, parent)
     return parser
 
 
 def _os_error_text(err: OSError) -> str:
     where = f"{err.filename}: " if err.filename else ""
     return f"{where}{err.strerror or err}"
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Shows a warning as one ``heatpf: warning: ...`` line on stderr (no source file, no line of code)."""
+    print(f"heatpf: warning: {message}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -786,9 +802,12 @@ def main(argv: list[str] | None = None) -> int:
 
     args = _build_parser().parse_args(argv)
     try:
-        with compilation_cache(enabled=not (args.no_cache or args.no_cache_global)) as cache_dir:
-            args.cache_dir = cache_dir
-            return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            no_cache = getattr(args, "no_cache", False) or args.no_cache_global
+            with compilation_cache(enabled=not no_cache) as cache_dir:
+                args.cache_dir = cache_dir
+                return args.func(args)
     except KeyboardInterrupt:
         print("heatpf: interrupted", file=sys.stderr)
         return _INTERRUPTED

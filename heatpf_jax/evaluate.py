@@ -16,6 +16,7 @@ import jax
 import numpy as np
 
 from heatpf_jax import params as P
+from heatpf_jax.files import write_atomic
 from heatpf_jax.presets import FilterOptions, build
 from heatpf_jax.rollout import run
 from heatpf_jax.sequence import Sequence
@@ -209,7 +210,11 @@ def plot_scenario(result: ScenarioResult, directory: str | Path) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     colours = {"heatmap": "tab:red", "conventional": "tab:blue", "kalman": "tab:purple", "bitbots2018": "tab:orange"}
-    shown = [m for m in result.methods if m.variant.name in colours]
+    # The four methods of the paper's figures when they were run; otherwise every method that was.
+    shown = [m for m in result.methods if m.variant.name in colours] or list(result.methods)
+    others = iter(["tab:brown", "tab:pink", "tab:gray", "tab:olive", "tab:cyan"] * 4)
+    for m in shown:
+        colours.setdefault(m.variant.name, next(others))
     b = result.burn_in
 
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -223,7 +228,7 @@ def plot_scenario(result: ScenarioResult, directory: str | Path) -> list[Path]:
     ax.legend()
     hist_path = directory / f"{result.name}_errors.png"
     fig.tight_layout()
-    fig.savefig(hist_path, dpi=100)
+    write_atomic(hist_path, lambda fh: fig.savefig(fh, format="png", dpi=100), binary=True)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 5))
@@ -238,6 +243,6 @@ def plot_scenario(result: ScenarioResult, directory: str | Path) -> list[Path]:
     ax.legend()
     trace_path = directory / f"{result.name}_traces.png"
     fig.tight_layout()
-    fig.savefig(trace_path, dpi=100)
+    write_atomic(trace_path, lambda fh: fig.savefig(fh, format="png", dpi=100), binary=True)
     plt.close(fig)
     return [hist_path, trace_path]

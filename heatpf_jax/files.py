@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 import tempfile
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO
@@ -34,6 +36,9 @@ def write_atomic(path: str | os.PathLike, write: Callable[[IO], None], *, binary
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=path.suffix + ".tmp")
     try:
+        # mkstemp creates 0600; the result gets the mode a plain open() would give it (0666 less the umask),
+        # or the mode of the file it replaces.
+        os.fchmod(fd, _mode_for(path))
         with os.fdopen(fd, "wb" if binary else "w") as fh:
             write(fh)
         os.replace(tmp, path)
@@ -41,6 +46,21 @@ def write_atomic(path: str | os.PathLike, write: Callable[[IO], None], *, binary
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+_UMASK_LOCK = threading.Lock()
+
+
+def _mode_for(path: Path) -> int:
+    """The permission bits a new file at ``path`` gets: those of the file it replaces, else 0666 & ~umask."""
+    try:
+        return stat.S_IMODE(path.stat().st_mode)
+    except OSError:
+        pass
+    with _UMASK_LOCK:  # the umask can only be read by setting it
+        umask = os.umask(0o022)
+        os.umask(umask)
+    return 0o666 & ~umask
 
 
 def same_file(a: Path, b: str | os.PathLike) -> bool:

@@ -36,8 +36,18 @@ __all__ = [
 ]
 
 
-class Measurements(NamedTuple):
+class _MeasurementFields(NamedTuple):
+    xy: Float[Array, "m 2"]
+    weight: Float[Array, " m"]
+    valid: Bool[Array, " m"]
+    footprint: Float[Array, "m 2 2"] | None = None
+
+
+class Measurements(_MeasurementFields):
     """A fixed-size, padded set of ground-plane measurements.
+
+    ``Measurements(xy, weight, valid)`` (three fields, as before the footprint existed) builds measurements
+    without a pixel footprint: ``footprint`` is then zeros, as for sources without pixels.
 
     Attributes:
         xy: ``float32 [M, 2]`` positions in the base frame, metres.
@@ -47,13 +57,15 @@ class Measurements(NamedTuple):
             ``d (x, y) / d (u, v)`` of its projection (:func:`~heatpf_jax.camera.ground_jacobian`), metres
             per pixel; column 0 is the ground step of one pixel to the right (lateral), column 1 of one
             row down (radial, several times longer far away). Zeros in invalid slots and for sources
-            without pixels. Odometry turns it with the base frame; aging leaves it unchanged.
+            without pixels (the default). Odometry turns it with the base frame; aging leaves it unchanged.
     """
 
-    xy: Float[Array, "m 2"]
-    weight: Float[Array, " m"]
-    valid: Bool[Array, " m"]
-    footprint: Float[Array, "m 2 2"]
+    __slots__ = ()
+
+    def __new__(cls, xy, weight, valid, footprint=None):
+        if footprint is None and getattr(xy, "ndim", 0) >= 1:  # not when JAX rebuilds a tree of other leaves
+            footprint = jnp.zeros((*xy.shape[:-1], 2, 2), getattr(xy, "dtype", jnp.float32))
+        return super().__new__(cls, xy, weight, valid, footprint)
 
 
 def empty_measurements(size: int) -> Measurements:

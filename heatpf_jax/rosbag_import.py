@@ -539,7 +539,7 @@ def _cmd_import_rosbag(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers, parents: list[argparse.ArgumentParser] = ()) -> argparse.ArgumentParser:
     """Registers ``import-rosbag`` on an ``argparse`` sub-parser collection; returns its parser.
 
     The parser's default ``func`` takes the parsed ``args`` and returns the exit code; bad input raises
@@ -547,6 +547,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     """
     p = subparsers.add_parser(
         "import-rosbag",
+        parents=list(parents),
         help="convert a ROS bag (rosbag2 sqlite3/mcap, or ROS 1) into a version-1 sequence file",
         description="Resample heat maps, camera info, tf, odometry and optional ground truth from a ROS bag onto "
         "a fixed filter clock and write a version-1 sequence (.npz). Needs the 'rosbags' package "

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import codecs
 import os
+import warnings
 import zipfile
 import zlib
 from pathlib import Path
@@ -229,6 +230,10 @@ def load_sequence(path: str | os.PathLike) -> Sequence:
     path = Path(path)
     try:
         present = _read_archive(path)
+        if path.suffix.lower() != ".npz":
+            named = f"the suffix '{path.suffix}'" if path.suffix else "no suffix"
+            warnings.warn(f"{path}: a .npz archive with {named} (sequence files are .npz); read as a sequence "
+                          "file", UserWarning, stacklevel=2)
         version = present.pop("format_version", None)
         if version is not None:
             if version.shape != () or version.dtype.kind not in "iu":

@@ -20,9 +20,16 @@ SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=
 SMALL_FILTER = hp.paper_filter(SMALL_OPTIONS)
 
 
-def pytest_collection_modifyitems(session, config, items):
-    """Starts the notebooks in background kernels when their test is selected (tests/notebook_runs.py)."""
-    if any("test_notebooks.py::test_notebook_executes" in item.nodeid for item in items):
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtestloop(session):
+    """Starts the notebooks in background kernels when their test is selected (tests/notebook_runs.py).
+
+    At the start of the test loop, after ``-k``/``-m`` deselection and never for ``--collect-only``, so
+    collecting or running other tests starts no kernel.
+    """
+    if session.config.option.collectonly:
+        return
+    if any("test_notebooks.py::test_notebook_executes" in item.nodeid for item in session.items):
         from tests.notebook_runs import start
 
         start()

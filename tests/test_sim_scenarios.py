@@ -2,37 +2,37 @@
 
 Each new scenario is simulated once (300 steps, the default 30 s, on a 50 x 37 heat map) and checked for what
 its name promises. Projections use the filter's ``project_points``; the older scenarios are pinned by
-fingerprints taken before the new ones were added (their random streams derive from their index in
-``SCENARIOS``). The checks were run with every seed 0-29 (change ``SEED`` to re-check).
+arrays taken before the new ones were added (their random streams derive from their index in ``SCENARIOS``),
+compared with tolerances, not hashes, so that another CPU's float rounding does not fail them. The checks
+were run with every seed 0-29 (change ``SEED`` to re-check).
 """
 
 from __future__ import annotations
 
 import functools
-import hashlib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import heatpf_jax as hp
 from heatpf_jax.sim import SCENARIOS, simulate, simulate_with_info
+from tests.data.scenario_pins import OLDER as OLDER_PINNED
+from tests.data.scenario_pins import pins
 
 DT = 0.1
 SEED = 0
 SHRINK = 4
 NEW = ("two_balls", "shot", "turning")
 
-# sha256 of heatmaps, ground_truth, odometry, cam_to_base and has_heatmap (seed 0, 40 steps, shrink 4),
-# computed with the code before two_balls, shot and turning existed.
-FINGERPRINTS = {
-    "standard": "8f5edddf3674c0e2789a83faa3cd690b6d806be2e4093c832a0917a2e29da332",
-    "false_positives": "a9cd43f17d78627ebd27d166b0baebb02fb38d9dae6e5426d51369ff7a0bc6dc",
-    "split": "f7e6d2a128fff312bdff6c87517fd6eab1fb5dedd57f2c5d4c379a5791e9e499",
-    "far": "0b3e4a9dc99fbb3831f0cbb4a7ba10c38c76253d8a8b992ad20f6c7881bd3a9e",
-    "occlusion": "cd45c5d6992651e0fab502114c785d005f298791d433168a067e803a4bdb648c",
-    "walking": "3361358bafc36988aac40fa47b179be83c34e7b0b812754ca4ba6d956dea2ae2",
-    "sparse_rate": "b053c6c54009f20aff43b2f6cccf20410a220885f4b6d1cd90cc412b42317301",
-}
+# The older scenarios (seed 0, 40 steps, shrink 4) as they were before two_balls, shot and turning existed:
+# whole small arrays, heat-map row and column sums and three whole maps (tests/data/scenario_pins.py).
+PINS = np.load(Path(__file__).parent / "data" / "scenario_pins.npz")
+OLDER = OLDER_PINNED
+# Far above float32 rounding of trigonometry on another CPU (about 1e-6 here), far below what any change of a
+# scenario's draws, blobs or motion makes (a ball moved by one pixel changes row sums by about 0.1).
+ATOL = {"ground_truth": 1e-5, "odometry": 1e-5, "cam_to_base": 1e-5, "row_sums": 2e-3, "col_sums": 2e-3,
+        "maps": 2e-3}
 
 
 def _rot(theta: float) -> np.ndarray:
@@ -79,19 +79,23 @@ def turning() -> tuple[hp.Sequence, dict]:
 
 
 def test_new_scenarios_come_last():
-    assert SCENARIOS[: len(FINGERPRINTS)] == tuple(FINGERPRINTS) and SCENARIOS[len(FINGERPRINTS) :] == NEW
+    assert SCENARIOS[: len(OLDER)] == OLDER and SCENARIOS[len(OLDER) :][: len(NEW)] == NEW
 
 
-@pytest.mark.parametrize("scenario", list(FINGERPRINTS))
-def test_older_scenarios_are_unchanged_bit_for_bit(scenario):
+@pytest.mark.parametrize("scenario", OLDER)
+def test_older_scenarios_are_unchanged(scenario):
     seq, _ = _old(scenario)
-    digest = hashlib.sha256()
-    for array in (seq.heatmaps, seq.ground_truth, seq.odometry, seq.cam_to_base, seq.has_heatmap):
-        digest.update(np.ascontiguousarray(array).tobytes())
-    assert digest.hexdigest() == FINGERPRINTS[scenario]
+    for key, value in pins(seq).items():
+        pinned = PINS[f"{scenario}/{key}"]
+        assert value.shape == pinned.shape and value.dtype == pinned.dtype, key
+        if value.dtype == bool:
+            np.testing.assert_array_equal(value, pinned, err_msg=key)
+        else:
+            np.testing.assert_allclose(value.astype(np.float64), pinned.astype(np.float64), rtol=0,
+                                       atol=ATOL[key], err_msg=f"{scenario}: {key}")
 
 
-@pytest.mark.parametrize("scenario", list(FINGERPRINTS))
+@pytest.mark.parametrize("scenario", OLDER)
 def test_one_ball_scenarios_report_their_ball(scenario):
     seq, info = _old(scenario)
     assert info["balls_base"].shape == (40, 1, 2) and info["balls_base"].dtype == np.float64
