@@ -31,6 +31,7 @@ __all__ = [
     "format_table",
     "mode_coverage",
     "plot_scenario",
+    "radial_lateral",
 ]
 
 
@@ -65,13 +66,20 @@ class MethodResult:
     variant: Variant
     estimates: np.ndarray  # [S, T, 2]
     errors: np.ndarray  # [S, T] Euclidean error, metres
+    radial: np.ndarray | None = None  # [S, T] signed error along the ray from the robot to the object, metres
+    lateral: np.ndarray | None = None  # [S, T] signed error across that ray (to the left), metres
 
     def stats(self, burn_in: int, end_steps: int = 30) -> dict[str, float]:
         """Mean, max, std of the error after ``burn_in``; ``end``: mean error of the last ``end_steps``
-        steps of each sequence (a filter that diverged for good shows it there)."""
+        steps of each sequence (a filter that diverged for good shows it there); ``radial`` and ``lateral``:
+        the root-mean-square of the error's parts along and across the ray from the robot (when known)."""
         e = self.errors[:, burn_in:].ravel()
         end = self.errors[:, -min(end_steps, self.errors.shape[1]) :]
-        return {"mean": float(e.mean()), "max": float(e.max()), "std": float(e.std()), "end": float(end.mean())}
+        out = {"mean": float(e.mean()), "max": float(e.max()), "std": float(e.std()), "end": float(end.mean())}
+        if self.radial is not None and self.lateral is not None:
+            out["radial"] = float(np.sqrt(np.mean(np.square(self.radial[:, burn_in:]))))
+            out["lateral"] = float(np.sqrt(np.mean(np.square(self.lateral[:, burn_in:]))))
+        return out
 
 
 @dataclass
@@ -149,11 +157,24 @@ def evaluate_sequences(
         est = np.asarray(out, np.float64)
         if not np.all(np.isfinite(est)):
             raise RuntimeError(f"{variant.name}: non-finite estimate on scenario {name!r}; please report this")
-        errors = np.min(np.linalg.norm(est[:, :, None, :] - objects, axis=-1), axis=-1)
-        results.append(MethodResult(variant, est, errors))
+        distances = np.linalg.norm(est[:, :, None, :] - objects, axis=-1)
+        nearest = np.take_along_axis(objects, np.argmin(distances, axis=-1)[:, :, None, None], axis=2)[:, :, 0]
+        radial, lateral = radial_lateral(est, nearest)
+        results.append(MethodResult(variant, est, np.min(distances, axis=-1), radial, lateral))
         if progress is not None:
             progress(f"{name}: {variant.name}")
     return ScenarioResult(name=name, truth=truth, methods=results, burn_in=burn_in, num_objects=objects.shape[2])
+
+
+def radial_lateral(estimates: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The error ``estimates - truth`` ``[..., 2]`` split along and across the ray from the robot (the base
+    frame's origin) to the truth: ``(radial, lateral)``, each ``[...]``, signed (radial: beyond the object is
+    positive; lateral: to the left of the ray is positive). At the origin itself the ray is taken along x."""
+    estimates, truth = np.asarray(estimates, np.float64), np.asarray(truth, np.float64)
+    norm = np.linalg.norm(truth, axis=-1, keepdims=True)
+    ray = np.where(norm > 1e-9, truth / np.where(norm > 1e-9, norm, 1.0), np.array([1.0, 0.0]))
+    d = estimates - truth
+    return np.sum(d * ray, axis=-1), ray[..., 0] * d[..., 1] - ray[..., 1] * d[..., 0]
 
 
 def mode_coverage(
@@ -183,13 +204,16 @@ def format_table(result: ScenarioResult, reference: str = "conventional") -> str
     lines = [
         f"scenario {result.name}: {s} sequence(s) x {t} steps, errors after step {result.burn_in}"
         + (f" (to the nearest of {result.num_objects} balls)" if result.num_objects > 1 else ""),
-        f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18} {'last 30 [m]':>13}",
+        f"{'method':<30} {'mean [m]':>9} {'max [m]':>9} {'std [m]':>9} {'mean/' + reference:>18} {'last 30 [m]':>13}"
+        f" {'radial rms':>11} {'lateral rms':>12}",
     ]
     for m in result.methods:
         st = m.stats(result.burn_in)
         ratio = f"{st['mean'] / ref_stats['mean']:.3f}" if ref_stats else "-"
+        split = f" {st['radial']:11.4f} {st['lateral']:12.4f}" if "radial" in st else f" {'-':>11} {'-':>12}"
         lines.append(
             f"{m.variant.name:<30} {st['mean']:9.4f} {st['max']:9.3f} {st['std']:9.4f} {ratio:>18} {st['end']:13.4f}"
+            + split
         )
     return "\n".join(lines)
 

@@ -27,6 +27,8 @@ from heatpf_jax.motion import apply_odometry
 
 __all__ = [
     "Measurements",
+    "measurements_at",
+    "strongest_pixels",
     "age_measurements",
     "downscale_heatmap",
     "empty_measurements",
@@ -150,6 +152,29 @@ def project_heatmap(
         :class:`Measurements` of size ``max_measurements``.
     """
     heatmap, intrinsics = downscale_heatmap(heatmap, intrinsics, downscale)
+    uv, passes, weight = strongest_pixels(heatmap, intrinsics, cam_to_base, threshold=threshold,
+                                          plane_height=plane_height, max_measurements=max_measurements,
+                                          max_distance=max_distance)
+    return measurements_at(uv, passes, weight, intrinsics, cam_to_base, plane_height=plane_height,
+                           max_measurements=max_measurements, max_distance=max_distance)
+
+
+def strongest_pixels(
+    heatmap: Float[ArrayLike, "h w"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    *,
+    threshold: Float[ArrayLike, ""],
+    plane_height: Float[ArrayLike, ""],
+    max_measurements: int,
+    max_distance: Float[ArrayLike, ""] = jnp.inf,
+) -> tuple[Float[Array, "k 2"], Bool[Array, " k"], Float[Array, " k"]]:
+    """The pixels :func:`project_heatmap` projects: at or above ``threshold`` with a ray that meets the plane.
+
+    Returns:
+        ``(uv, passes, activation)`` each of ``k = min(max_measurements, H W)`` entries: the strongest passing
+        pixels (all of them when they fit) in raster order, passing ones first.
+    """
     h, w = heatmap.shape
     n_pix = h * w
     act = jnp.asarray(heatmap, jnp.float32).ravel()
@@ -157,19 +182,33 @@ def project_heatmap(
 
     # The strongest passing pixels (all of them when they fit), back in raster order. top_k over the
     # H*W scores is cheaper on XLA:CPU than a cumsum-based compaction.
-    m = int(max_measurements)
-    k = min(m, n_pix)
+    k = min(int(max_measurements), n_pix)
     _, idx = lax.top_k(jnp.where(passes, act, -1.0), k)
     # One sort puts the passing pixels first, in raster order, then the rest.
     idx = jnp.sort(jnp.where(passes[idx], idx, idx + n_pix)) % n_pix
     uv = jnp.stack([(idx % w).astype(jnp.float32), (idx // w).astype(jnp.float32)], axis=-1)
+    return uv, passes[idx], act[idx]
+
+
+def measurements_at(
+    uv: Float[ArrayLike, "k 2"],
+    passes: Bool[ArrayLike, " k"],
+    weight: Float[ArrayLike, " k"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    *,
+    plane_height: Float[ArrayLike, ""],
+    max_measurements: int,
+    max_distance: Float[ArrayLike, ""] = jnp.inf,
+) -> Measurements:
+    """Measurements at image points ``uv`` (any real pixel coordinates): their rays' hits on the plane, the
+    given weights and the projection's Jacobian there, padded to ``max_measurements`` slots."""
     xy, ray_ok = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))(
         uv, intrinsics, cam_to_base, plane_height, max_distance
     )
-    valid = passes[idx] & ray_ok
-    weight = act[idx]
+    valid = passes & ray_ok
     footprint = jax.vmap(ground_jacobian, in_axes=(0, None, None, None))(uv, intrinsics, cam_to_base, plane_height)
-    pad = m - k
+    pad = int(max_measurements) - uv.shape[0]
     return Measurements(
         xy=jnp.pad(jnp.where(valid[:, None], xy, 0.0), ((0, pad), (0, 0))),
         weight=jnp.pad(jnp.where(valid, weight, 0.0), (0, pad)),

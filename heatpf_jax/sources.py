@@ -4,6 +4,10 @@
   (:func:`heatpf_jax.measurements.project_heatmap`).
 * :class:`ClusterCentreSource`: the conventional source, one measurement per heat map, the centre of
   the strongest image-space component (:mod:`heatpf_jax.image_components`).
+* :class:`CentroidSource`: every pixel at or above the threshold, moved to the centroid of its blob in the
+  image before it is projected (:mod:`heatpf_jax.image_centroids`): the centroid's precision along the
+  line of sight with one measurement per pixel, so eq. (1)'s robustness to false positives and split
+  blobs is kept.
 """
 
 from __future__ import annotations
@@ -11,12 +15,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import jax.numpy as jnp
+
+from heatpf_jax.image_centroids import blob_centres
 from heatpf_jax.image_components import cluster_measurement
-from heatpf_jax.measurements import Measurements, project_heatmap
+from heatpf_jax.measurements import Measurements, downscale_heatmap, measurements_at, project_heatmap, strongest_pixels
 from heatpf_jax.params import positive, unit_interval
 from heatpf_jax.pieces import StepInputs
 
-__all__ = ["ClusterCentreSource", "PixelSource", "SourceParams"]
+__all__ = ["CentroidParams", "CentroidSource", "ClusterCentreSource", "PixelSource", "SourceParams"]
 
 
 class SourceParams(NamedTuple):
@@ -101,5 +108,82 @@ class ClusterCentreSource:
             threshold=params.threshold,
             plane_height=inputs.plane_height,
             size=1,
+            max_distance=params.max_distance,
+        )
+
+
+class CentroidParams(NamedTuple):
+    """Numbers of :class:`CentroidSource`.
+
+    Attributes:
+        threshold: minimum heat-map activation of a blob's pixel (III-A).
+        max_distance: measurements farther from the robot are dropped, metres.
+        reach: the centroid window's half-size in radii of a ground ball at its centre.
+        max_fill: a measurement whose final window is fuller than this (a blob larger than a ball lying
+            on the ground there: a ball in the air, whose projection lies behind it) is dropped; 1 keeps all.
+    """
+
+    threshold: float = 0.3
+    max_distance: float = 12.0
+    reach: float = 1.5
+    max_fill: float = 1.0
+
+
+@dataclass(frozen=True)
+class CentroidSource:
+    """Every pixel at or above ``threshold``, moved to its blob's centroid in the image, then projected.
+
+    Each passing pixel runs ``iterations`` mean-shift steps over the above-threshold activations with a
+    window of ``reach`` ground-ball radii (:func:`~heatpf_jax.image_centroids.blob_centres`); the measurement
+    is the projection of where it ends, with the pixel's own activation as its weight (eq. 1's ``w``) and
+    the projection's Jacobian at the centroid as its footprint.
+
+    Attributes:
+        max_measurements: slots; the strongest pixels are kept (IV-E).
+        downscale: integer block-averaging of the heat map first (III-A).
+        iterations: mean-shift steps.
+    """
+
+    max_measurements: int = 1024
+    downscale: int = 1
+    iterations: int = 3
+
+    @property
+    def size(self) -> int:
+        return self.max_measurements
+
+    def default_params(self) -> CentroidParams:
+        return CentroidParams()
+
+    def properties(self) -> CentroidParams:
+        # Each acts through which pixels count or where a window ends: frozen, swept rather than tuned.
+        return CentroidParams(
+            threshold=unit_interval(trainable=False),
+            max_distance=positive(trainable=False, allow_inf=True),
+            reach=positive(trainable=False),
+            max_fill=unit_interval(trainable=False),
+        )
+
+    def validate(self) -> None:
+        for name in ("max_measurements", "downscale", "iterations"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+
+    def measure(self, inputs: StepInputs, params: CentroidParams) -> Measurements:
+        heatmap, intrinsics = downscale_heatmap(inputs.heatmap, inputs.intrinsics, self.downscale)
+        uv, passes, weight = strongest_pixels(
+            heatmap, intrinsics, inputs.cam_to_base, threshold=params.threshold,
+            plane_height=inputs.plane_height, max_measurements=self.max_measurements,
+            max_distance=params.max_distance,
+        )
+        centres = blob_centres(
+            heatmap, uv, intrinsics, inputs.cam_to_base, threshold=params.threshold,
+            plane_height=inputs.plane_height, reach=params.reach, iterations=self.iterations,
+        )
+        keep = passes & (centres.fill <= params.max_fill)
+        return measurements_at(
+            centres.uv, keep, jnp.where(keep, weight, 0.0), intrinsics, inputs.cam_to_base,
+            plane_height=inputs.plane_height, max_measurements=self.max_measurements,
             max_distance=params.max_distance,
         )
