@@ -105,7 +105,7 @@ from heatpf_jax.resampling_clustered import ClusterParams, ClusterResampling
 from heatpf_jax.resampling_gradients import DetachResampling, SoftResampling, StopGradientResampling
 from heatpf_jax.rollout import RunResult, run, stack_params, validate_params
 from heatpf_jax.sequence import Sequence, SequenceError, load_sequence, save_sequence, validate_sequence
-from heatpf_jax.sources import ClusterCentreSource, PixelSource, SourceParams
+from heatpf_jax.sources import CentroidParams, CentroidSource, ClusterCentreSource, PixelSource, SourceParams
 from heatpf_jax.tracker import Tracker
 from heatpf_jax.tuning import Checkpointed, TuneResult, differentiable, mse_loss, nll_loss, trainable_names, tune
 
@@ -125,6 +125,8 @@ __version__ = _version()
 __all__ = [
     "AgingBuffer",
     "AgingParams",
+    "CentroidParams",
+    "CentroidSource",
     "Checkpointed",
     "ClusterCentreSource",
     "ClusterParams",

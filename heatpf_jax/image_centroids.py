@@ -44,12 +44,16 @@ class BlobCentres(NamedTuple):
         uv: ``[M, 2]`` (column, row) of the window's final centroid.
         mass: ``[M]`` summed above-threshold activation in the final window.
         fill: ``[M]`` share of the final window's pixels at or above the threshold.
+        spill: ``[M]`` above-threshold pixels in a window twice as large, over those in the final window: about
+            1 for a blob no larger than the window (a ball on the ground, a split ball), more for a blob larger
+            than a ground ball there (a ball in the air, a large false positive); 1 for an empty window.
         radius_px: ``[M]`` the ground ball's radius in pixels at the final centre (0 above the horizon).
     """
 
     uv: Float[Array, "m 2"]
     mass: Float[Array, " m"]
     fill: Float[Array, " m"]
+    spill: Float[Array, " m"]
     radius_px: Float[Array, " m"]
 
 
@@ -120,9 +124,9 @@ def blob_centres(
     s_v = summed_area(mass_map * rows)
     s_count = summed_area((heat >= threshold).astype(jnp.float32))
 
-    def window(uv):
+    def window(uv, scale=1.0):
         radius = ball_radius_px(uv, intrinsics, cam_to_base, plane_height)
-        half = jnp.maximum(jnp.round(reach * radius), 1.0)
+        half = scale * jnp.maximum(jnp.round(reach * radius), 1.0)
         u0 = jnp.clip(jnp.round(uv[:, 0] - half), 0, w - 1).astype(jnp.int32)
         u1 = jnp.clip(jnp.round(uv[:, 0] + half), 0, w - 1).astype(jnp.int32)
         v0 = jnp.clip(jnp.round(uv[:, 1] - half), 0, h - 1).astype(jnp.int32)
@@ -140,4 +144,7 @@ def blob_centres(
     box, radius = window(uv)
     u0, u1, v0, v1 = box
     area = ((u1 - u0 + 1) * (v1 - v0 + 1)).astype(jnp.float32)
-    return BlobCentres(uv=uv, mass=_box(s_mass, *box), fill=_box(s_count, *box) / area, radius_px=radius)
+    count = _box(s_count, *box)
+    count_around = _box(s_count, *window(uv, 2.0)[0])
+    spill = jnp.where(count > 0.0, count_around / jnp.maximum(count, 1.0), 1.0)
+    return BlobCentres(uv=uv, mass=_box(s_mass, *box), fill=count / area, spill=spill, radius_px=radius)

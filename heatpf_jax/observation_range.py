@@ -47,6 +47,8 @@ from heatpf_jax.observation import _KNearestModel, k_nearest
 from heatpf_jax.params import positive
 
 __all__ = [
+    "FootprintKernel",
+    "FootprintKernelParams",
     "FootprintTemplate",
     "FootprintTemplateParams",
     "footprint_template_log_likelihood",
@@ -76,6 +78,19 @@ def nearest_slots(
     _, slot, selected = k_nearest(particles, index, k, k_max=k_max, method=method)
     slots = jnp.where(selected, lax.stop_gradient(slot), 0.0).astype(jnp.int32)
     return slots, selected
+
+
+def _footprint_quadratic(particles, measurements: Measurements, slots, template_px, min_std):
+    """``d_ij^T S_j^{-1} d_ij`` for each particle's selected slots, ``S_j = template_px^2 F_j F_j^T + min_std^2 I``."""
+    f = measurements.footprint
+    scale2, floor2 = jnp.square(template_px), jnp.square(min_std)
+    sxx = scale2 * (f[:, 0, 0] ** 2 + f[:, 0, 1] ** 2) + floor2
+    syy = scale2 * (f[:, 1, 0] ** 2 + f[:, 1, 1] ** 2) + floor2
+    sxy = scale2 * (f[:, 0, 0] * f[:, 1, 0] + f[:, 0, 1] * f[:, 1, 1])
+    det = sxx * syy - sxy * sxy
+    dx = particles[:, 0, None] - measurements.xy[slots, 0]
+    dy = particles[:, 1, None] - measurements.xy[slots, 1]
+    return (syy[slots] * dx * dx - 2.0 * sxy[slots] * dx * dy + sxx[slots] * dy * dy) / det[slots]
 
 
 def footprint_template_log_likelihood(
@@ -108,16 +123,7 @@ def footprint_template_log_likelihood(
     """
     particles = jnp.asarray(particles)
     slots, selected = nearest_slots(particles, measurements, k, k_max=k_max, method=method)
-    # S_j^{-1} per measurement (three entries of a symmetric 2 x 2), then gathered per neighbour.
-    f = measurements.footprint
-    scale2, floor2 = jnp.square(template_px), jnp.square(min_std)
-    sxx = scale2 * (f[:, 0, 0] ** 2 + f[:, 0, 1] ** 2) + floor2
-    syy = scale2 * (f[:, 1, 0] ** 2 + f[:, 1, 1] ** 2) + floor2
-    sxy = scale2 * (f[:, 0, 0] * f[:, 1, 0] + f[:, 0, 1] * f[:, 1, 1])
-    det = sxx * syy - sxy * sxy
-    dx = particles[:, 0, None] - measurements.xy[slots, 0]
-    dy = particles[:, 1, None] - measurements.xy[slots, 1]
-    q = (syy[slots] * dx * dx - 2.0 * sxy[slots] * dx * dy + sxx[slots] * dy * dy) / det[slots]
+    q = _footprint_quadratic(particles, measurements, slots, template_px, min_std)
     contrib = jnp.where(selected, measurements.weight[slots] * jnp.exp(-0.5 * q), 0.0)
     score = gain * jnp.sum(contrib, axis=-1)
     return jnp.where(jnp.any(measurements.valid), score, jnp.zeros_like(score))
@@ -171,4 +177,78 @@ class FootprintTemplate(_KNearestModel):
             min_std=params.min_std,
             k_max=self.k_max,
             method=self.knn,
+        )
+
+
+def footprint_kernel_log_likelihood(
+    particles: Float[ArrayLike, "n 2"],
+    measurements: Measurements,
+    k: Int[ArrayLike, ""],
+    *,
+    template_px: Float[ArrayLike, ""],
+    min_std: Float[ArrayLike, ""],
+    k_max: int | None = None,
+    method: str = "auto",
+) -> Float[Array, " n"]:
+    """``log sum_{j in C_i} w_j exp(-d_ij^T S_j^{-1} d_ij / 2)``: a mixture of footprint-shaped kernels.
+
+    Args: as :func:`footprint_template_log_likelihood`, without ``gain``.
+
+    Returns:
+        ``[N]`` log-likelihoods up to a shared constant; all zeros when no measurement is valid.
+    """
+    particles = jnp.asarray(particles)
+    slots, selected = nearest_slots(particles, measurements, k, k_max=k_max, method=method)
+    q = _footprint_quadratic(particles, measurements, slots, template_px, min_std)
+    # log-sum-exp over the selected neighbours, each with log weight log w_j - q / 2.
+    log_terms = jnp.where(selected, jnp.log(jnp.maximum(measurements.weight[slots], 1e-30)) - 0.5 * q, -jnp.inf)
+    top = jnp.max(log_terms, axis=-1, keepdims=True)
+    top = jnp.where(jnp.isfinite(top), lax.stop_gradient(top), 0.0)
+    score = top[:, 0] + jnp.log(jnp.maximum(jnp.sum(jnp.exp(log_terms - top), axis=-1), 1e-30))
+    none = ~jnp.any(selected, axis=-1)
+    score = jnp.where(none, jnp.log(1e-30), score)
+    return jnp.where(jnp.any(measurements.valid), score, jnp.zeros_like(score))
+
+
+class FootprintKernelParams(NamedTuple):
+    """Numbers of :class:`FootprintKernel`.
+
+    Attributes:
+        k: neighbours per particle, ``1 <= k <= k_max``.
+        template_px: kernel std in pixels of the measurement's own pixel.
+        min_std: smallest kernel std on the ground, metres.
+    """
+
+    k: int = 10
+    template_px: float = 0.5
+    min_std: float = 0.05
+
+
+@dataclass(frozen=True)
+class FootprintKernel(_KNearestModel):
+    """A mixture of range-aware kernels: ``log sum_{j in C_i} w(m_j) exp(-d_ij^T S_j^{-1} d_ij / 2)``.
+
+    :class:`FootprintTemplate`'s kernels, summed as densities (eq. 1's sum over the k nearest, with each
+    pixel's kernel as long as its ground footprint) instead of added in the log domain. A sum keeps the
+    weights of two blobs in the ratio of their activations, so a false positive brighter than the ball
+    does not take the particles from it in a few steps, and with measurements at their blob's centroid
+    (:class:`~heatpf_jax.sources.CentroidSource`) each blob is one kernel at its centre.
+
+    Attributes:
+        k_max: static upper bound on the traced ``k`` (the search's arrays are sized for it).
+        knn: the exact k-nearest search, ``"auto"``, ``"blocked"`` or ``"dense"``.
+    """
+
+    def default_params(self) -> FootprintKernelParams:
+        return FootprintKernelParams(k=min(FootprintKernelParams().k, self.k_max))
+
+    def properties(self) -> FootprintKernelParams:
+        return FootprintKernelParams(k=self._k(), template_px=positive(), min_std=positive())
+
+    def log_likelihood(
+        self, xy: Float[Array, "n 2"], buffer: Measurements, params: FootprintKernelParams
+    ) -> Float[Array, " n"]:
+        return footprint_kernel_log_likelihood(
+            xy, buffer, params.k, template_px=params.template_px, min_std=params.min_std,
+            k_max=self.k_max, method=self.knn,
         )

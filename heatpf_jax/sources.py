@@ -119,14 +119,16 @@ class CentroidParams(NamedTuple):
         threshold: minimum heat-map activation of a blob's pixel (III-A).
         max_distance: measurements farther from the robot are dropped, metres.
         reach: the centroid window's half-size in radii of a ground ball at its centre.
-        max_fill: a measurement whose final window is fuller than this (a blob larger than a ball lying
-            on the ground there: a ball in the air, whose projection lies behind it) is dropped; 1 keeps all.
+        max_spill: a measurement whose blob spills out of its window (above-threshold pixels in a window twice
+            as large over those in the window, :attr:`~heatpf_jax.image_centroids.BlobCentres.spill`) more than
+            this is dropped: its blob is larger than a ball lying on the ground there would make, as a ball in
+            the air is (its projection lies far behind it) or a large false positive; ``inf`` keeps all.
     """
 
     threshold: float = 0.3
     max_distance: float = 12.0
     reach: float = 1.5
-    max_fill: float = 1.0
+    max_spill: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,7 @@ class CentroidSource:
             threshold=unit_interval(trainable=False),
             max_distance=positive(trainable=False, allow_inf=True),
             reach=positive(trainable=False),
-            max_fill=unit_interval(trainable=False),
+            max_spill=positive(trainable=False, allow_inf=True),
         )
 
     def validate(self) -> None:
@@ -181,7 +183,7 @@ class CentroidSource:
             heatmap, uv, intrinsics, inputs.cam_to_base, threshold=params.threshold,
             plane_height=inputs.plane_height, reach=params.reach, iterations=self.iterations,
         )
-        keep = passes & (centres.fill <= params.max_fill)
+        keep = passes & (centres.spill <= params.max_spill)
         return measurements_at(
             centres.uv, keep, jnp.where(keep, weight, 0.0), intrinsics, inputs.cam_to_base,
             plane_height=inputs.plane_height, max_measurements=self.max_measurements,

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
+import heatpf_jax.sim.render
 from heatpf_jax.image_centroids import ball_radius_px, blob_centres, summed_area
 from heatpf_jax.sim import scaled_camera
 from heatpf_jax.sim.render import blob
@@ -36,8 +37,11 @@ def _mean_shift_np(heat, start, threshold, reach, iterations):
             v0, v1 = (int(np.clip(np.round(x), 0, h - 1)) for x in (v - half, v + half))
             win = mass[v0 : v1 + 1, u0 : u1 + 1]
             if i == iterations:
-                fill = np.mean(heat[v0 : v1 + 1, u0 : u1 + 1] >= threshold)
-                out.append((u, v, win.sum(), fill))
+                count = np.sum(heat[v0 : v1 + 1, u0 : u1 + 1] >= threshold)
+                b0, b1 = (int(np.clip(np.round(x), 0, w - 1)) for x in (u - 2 * half, u + 2 * half))
+                c0, c1 = (int(np.clip(np.round(x), 0, h - 1)) for x in (v - 2 * half, v + 2 * half))
+                around = np.sum(heat[c0 : c1 + 1, b0 : b1 + 1] >= threshold)
+                out.append((u, v, win.sum(), count / win.size, around / count if count else 1.0))
                 break
             if win.sum() > 0:
                 vv, uu = np.mgrid[v0 : v1 + 1, u0 : u1 + 1]
@@ -74,6 +78,7 @@ def test_mean_shift_against_brute_force(rng, reach, iterations):
     assert close.mean() > 0.97
     np.testing.assert_allclose(np.asarray(got.mass)[close], want[close, 2], rtol=1e-4)
     np.testing.assert_allclose(np.asarray(got.fill)[close], want[close, 3], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(got.spill)[close], want[close, 4], rtol=1e-6)
 
 
 def test_every_pixel_of_a_blob_ends_at_its_centre_and_projects_onto_the_ball(rng):
@@ -92,3 +97,26 @@ def test_every_pixel_of_a_blob_ends_at_its_centre_and_projects_onto_the_ball(rng
     assert np.ptp(raw[near_ball, 0]) > 0.4  # the pixels' own ground points spread along the ray
     assert np.abs(moved[near_ball] - ball[:2]).max() < 0.06
     assert np.abs(moved[~near_ball] - fp[:2]).max() < 0.06
+
+
+def _disc(centre, radius, peak):
+    u0, v0, depth = hp.sim.render.project_centre(centre, INTRINSICS, CAM)
+    vv, uu = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]]
+    return peak * np.clip(INTRINSICS[0] * radius / depth + 0.5 - np.hypot(uu - u0, vv - v0), 0, 1)
+
+
+@pytest.mark.parametrize("shape", ["gaussian", "disc"])
+def test_a_ball_in_the_air_spills_out_of_its_window_and_a_ground_ball_does_not(shape):
+    """A ball 0.35 m up, 2.5 m away, projects onto the ground 4.2 m away, where a ground ball would look
+    0.6 times as large: its blob spills out of the window sized for that ground ball. The ground ball's
+    blob, Gaussian or a saturated disc, stays inside its own."""
+    render = (lambda c: blob(c, RADIUS, INTRINSICS, CAM, SHAPE, 0.9)) if shape == "gaussian" else (
+        lambda c: _disc(c, RADIUS, 0.95))
+    spills = {}
+    for name, centre in (("ground", np.array([2.5, 0.3, RADIUS])), ("air", np.array([2.5, 0.3, RADIUS + 0.35]))):
+        heat = render(centre).astype(np.float32)
+        v, u = np.nonzero(heat >= 0.3)
+        got = blob_centres(heat, np.stack([u, v], 1).astype(np.float32), INTRINSICS, CAM, threshold=0.3,
+                           plane_height=RADIUS)
+        spills[name] = np.asarray(got.spill)
+    assert np.all(spills["ground"] <= 1.05) and np.median(spills["air"]) > 1.5

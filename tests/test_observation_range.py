@@ -10,8 +10,10 @@ import heatpf_jax as hp
 from heatpf_jax import params as P
 from heatpf_jax.camera import ground_jacobian
 from heatpf_jax.observation_range import (
+    FootprintKernel,
     FootprintTemplate,
     FootprintTemplateParams,
+    footprint_kernel_log_likelihood,
     footprint_template_log_likelihood,
 )
 from heatpf_jax.pieces import ObservationModel
@@ -296,3 +298,35 @@ def test_piece_properties_validation_and_filter_params():
             method="dense",
         ),
     )
+
+
+# --------------------------------------------------------------------------- the kernel mixture
+
+_mixture = jax.jit(footprint_kernel_log_likelihood, static_argnames=("k_max", "method"))
+
+
+@pytest.mark.parametrize("k", [1, 4, K_MAX])
+def test_footprint_kernel_is_the_log_of_the_brute_force_kernel_sum(rng, k):
+    buf = random_buffer(rng)
+    particles = jnp.asarray(rng.uniform(-1.8, 1.8, (N_PART, 2)), jnp.float32)
+    got = np.asarray(_mixture(particles, buf, k, template_px=0.7, min_std=0.04, k_max=K_MAX))
+    # The template sum with gain 1 is the kernel sum itself.
+    want = np.log(ref_loglik(particles, buf.xy, buf.weight, buf.valid, buf.footprint, k, 1.0, 0.7, 0.04))
+    finite = np.isfinite(want) & (want > np.log(1e-25))
+    assert finite.mean() > 0.5
+    np.testing.assert_allclose(got[finite], want[finite], rtol=1e-4, atol=1e-4)
+
+
+def test_footprint_kernel_keeps_two_blobs_in_the_ratio_of_their_activations():
+    """A mixture, not a product: a blob of k measurements of weight 0.9 beside one of weight 0.6 gives
+    particles on them a likelihood ratio 0.9 / 0.6, where the template's log-domain sum gives exp(gain k 0.3)."""
+    xy = np.r_[np.tile([[1.0, 0.0]], (K_MAX, 1)), np.tile([[2.0, 1.0]], (K_MAX, 1))]
+    buf = hp.Measurements(jnp.asarray(xy, jnp.float32), jnp.asarray([0.9] * K_MAX + [0.6] * K_MAX, jnp.float32),
+                          jnp.ones(2 * K_MAX, bool), jnp.asarray(np.tile(np.eye(2) * 0.01, (2 * K_MAX, 1, 1))))
+    at = jnp.asarray([[1.0, 0.0], [2.0, 1.0]], jnp.float32)
+    got = np.asarray(_mixture(at, buf, K_MAX, template_px=1.0, min_std=0.05, k_max=K_MAX))
+    assert got[0] - got[1] == pytest.approx(np.log(0.9 / 0.6), abs=1e-5)
+    model = FootprintKernel(k_max=K_MAX)
+    assert isinstance(model, ObservationModel) and model.default_params().k == K_MAX
+    empty = hp.Measurements(jnp.zeros((4, 2)), jnp.zeros(4), jnp.zeros(4, bool))
+    np.testing.assert_array_equal(np.asarray(model.log_likelihood(at, empty, model.default_params())), 0.0)

@@ -47,3 +47,33 @@ def test_source_validation_names_the_field():
         hp.PixelSource(max_measurements=0).validate()
     with pytest.raises(ValueError, match="^downscale:"):
         hp.PixelSource(downscale=1.5).validate()
+
+
+def test_centroid_source_projects_each_pixels_blob_centre(small_sequence):
+    from heatpf_jax.image_centroids import blob_centres
+
+    inputs = step_inputs(small_sequence, 2, has_heatmap=True)
+    source = hp.CentroidSource(max_measurements=256)
+    params = hp.CentroidParams(threshold=0.4)
+    out = source.measure(inputs, params)
+    heat = np.asarray(small_sequence.heatmaps[2])
+    v, u = np.nonzero(heat >= 0.4)
+    assert int(np.sum(out.valid)) == len(u)
+    np.testing.assert_allclose(np.asarray(out.weight)[np.asarray(out.valid)], heat[v, u])  # raster order
+    centres = blob_centres(heat, np.stack([u, v], 1).astype(np.float32), inputs.intrinsics, inputs.cam_to_base,
+                           threshold=0.4, plane_height=inputs.plane_height)
+    uv = np.asarray(centres.uv, np.float64)
+    fx, fy, cx, cy = np.asarray(small_sequence.intrinsics, np.float64)
+    pose = np.asarray(small_sequence.cam_to_base[2], np.float64)
+    rays = pose[:3, :3] @ np.stack([(uv[:, 0] - cx) / fx, (uv[:, 1] - cy) / fy, np.ones(len(uv))])
+    xy = pose[:2, 3, None] + (float(small_sequence.ball_radius) - pose[2, 3]) / rays[2] * rays[:2]
+    np.testing.assert_allclose(np.asarray(out.xy)[np.asarray(out.valid)], xy.T, atol=1e-4)
+    # A ball's pixels all end near the ball (the sequence's ground truth), closer than the pixels themselves.
+    raw = hp.PixelSource(max_measurements=256).measure(inputs, hp.SourceParams(threshold=0.4))
+    truth = np.asarray(small_sequence.ground_truth[2])
+    spread = lambda m: np.abs(np.asarray(m.xy)[np.asarray(m.valid)] - truth).max()  # noqa: E731
+    assert spread(out) < spread(raw)
+    # A blob that spills out of its window more than max_spill is dropped: with max_spill below 1, every one.
+    assert not np.any(np.asarray(source.measure(inputs, params._replace(max_spill=0.99)).valid))
+    assert np.array_equal(np.asarray(source.measure(inputs, params._replace(max_spill=3.0)).valid),
+                          np.asarray(out.valid))

@@ -6,10 +6,14 @@ contract, so ``project_heatmap`` of a rendered frame lands on the ball.
 * :mod:`heatpf_jax.sim.world`: ball paths, robot poses and odometry, random events;
 * :mod:`heatpf_jax.sim.render`: heat-map rendering;
 * :mod:`heatpf_jax.sim.scenarios`: :func:`simulate` and the named scenarios (:data:`SCENARIOS`);
+* :mod:`heatpf_jax.sim.family`: the world family (:data:`FAMILY`), each scenario type with its nuisance
+  factors (detector blob, clutter, camera and its calibration, timing, ball motion) drawn per seed
+  (:func:`simulate_family`), with :mod:`heatpf_jax.sim.detector` and :mod:`heatpf_jax.sim.ball_motion`;
 * :mod:`heatpf_jax.sim.tracks` and :mod:`heatpf_jax.sim.replay`: real ball tracks from professional matches
   (fetched at first use, never stored in the repository), replayed at KidSize scale (:func:`replay_world`).
 """
 
+from heatpf_jax.sim.family import FAMILY, draw_factors, simulate_family, simulate_family_with_info
 from heatpf_jax.sim.render import BALL_RADIUS, DEFAULT_INTRINSICS, HEATMAP_SHAPE, render_heatmap, scaled_camera
 from heatpf_jax.sim.replay import replay_segments, replay_world
 from heatpf_jax.sim.scenarios import SCENARIOS, simulate, simulate_standard, simulate_with_info
@@ -20,9 +24,11 @@ __all__ = [
     "BALL_RADIUS",
     "BallTrack",
     "DEFAULT_INTRINSICS",
+    "FAMILY",
     "HEATMAP_SHAPE",
     "SCENARIOS",
     "ball_path",
+    "draw_factors",
     "fetch_kloppy_files",
     "integrate_odometry",
     "load_pff",
@@ -35,6 +41,8 @@ __all__ = [
     "scaled_camera",
     "segments",
     "simulate",
+    "simulate_family",
+    "simulate_family_with_info",
     "simulate_standard",
     "simulate_with_info",
     "world_to_base",

@@ -1,0 +1,106 @@
+"""Every method on worlds we did not design for: the randomised world family and replays of real ball tracks.
+
+Prints one table per world kind (family members; replays with a static and a walking robot, the ball kept on
+the ground or with its real height): the mean error after the burn-in, and its radial (along the ray from the
+robot) and lateral root-mean-square parts, per method, over the given seeds; then, per world, the ratio of
+each method's mean error to the best other method's (worst world first), which is how defaults are judged.
+
+    python benchmarks/worlds.py                          # family seeds 0-2, six replays, 300 steps
+    python benchmarks/worlds.py --seeds 100:103 --kinds family   # development seeds, family only
+    python benchmarks/worlds.py --kinds replay --render disc     # replays, saturated-disc detector blobs
+
+Replays need the real tracks: the first run fetches kloppy's source distribution from PyPI (about 40 MB,
+cached in ~/.cache/heatpf_jax/tracks; see heatpf_jax.sim.tracks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from heatpf_jax.evaluate import Variant, evaluate_sequences
+from heatpf_jax.settings import parse_seeds
+
+METHODS = ("heatmap", "paper", "extended", "kalman", "conventional", "bitbots2018")
+
+
+def _disc_render(rng, centres, radius, intrinsics, cam_to_base, shape):
+    """A saturated detector: a flat disc over the ball's outline (1 px soft edge), peak 0.95, noise 0.03."""
+    from heatpf_jax.sim.render import project_centre
+
+    h, w = shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    act = np.zeros(shape)
+    for centre in np.atleast_2d(centres):
+        u0, v0, depth = project_centre(centre, intrinsics, cam_to_base)
+        if depth <= 0.05:
+            continue
+        r = intrinsics[0] * radius / depth
+        act = np.maximum(act, 0.95 * np.clip(r + 0.5 - np.hypot(uu - u0, vv - v0), 0.0, 1.0))
+    return np.clip(act + 0.03 * rng.standard_normal(shape), 0.0, 1.0).astype(np.float32)
+
+
+def family_worlds(seeds, steps, members):
+    from heatpf_jax.sim.family import FAMILY, simulate_family
+
+    for member in members or FAMILY:
+        yield f"family/{member}", [simulate_family(member, s, num_steps=steps) for s in seeds]
+
+
+def replay_worlds(count, steps, render):
+    from heatpf_jax.sim.replay import replay_segments, replay_world
+
+    pieces = replay_segments("skillcorner", min_length_s=30.0)[:count]
+    draw = _disc_render if render == "disc" else None
+    for robot in ("static", "walking"):
+        for heights in ("flat", "kept"):
+            seqs = [replay_world(p, i, robot=robot, heights=heights, num_steps=steps, render=draw)[0]
+                    for i, p in enumerate(pieces)]
+            yield f"replay/{robot}/{heights}", seqs
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seeds", default="0:3", help="family seeds, N or START:STOP (default 0:3)")
+    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--kinds", default="family,replay", help="family, replay or both (default)")
+    parser.add_argument("--members", help="family members, comma-separated (default: all)")
+    parser.add_argument("--replays", type=int, default=6, help="replayed track pieces (default 6)")
+    parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
+    parser.add_argument("--methods", default=",".join(METHODS))
+    args = parser.parse_args(argv)
+    seeds = list(parse_seeds(args.seeds, 3))
+    methods = args.methods.split(",")
+    variants = [Variant(m, m) for m in methods]
+    worlds = []
+    if "family" in args.kinds:
+        worlds += list(family_worlds(seeds, args.steps, args.members.split(",") if args.members else None))
+    if "replay" in args.kinds:
+        worlds += list(replay_worlds(args.replays, args.steps, args.render))
+    print(f"methods: {', '.join(methods)}; family seeds {seeds[0]}..{seeds[-1]}; {args.steps} steps; "
+          f"errors after step 10: mean [m] (radial rms / lateral rms)")
+    header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
+    print(header)
+    ratios = {}
+    for name, seqs in worlds:
+        t0 = time.perf_counter()
+        result = evaluate_sequences(name, seqs, variants=variants)
+        stats = {m.variant.name: m.stats(result.burn_in) for m in result.methods}
+        cells = [f"{s['mean']:.3f} ({s['radial']:.3f}/{s['lateral']:.3f})" for s in stats.values()]
+        print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",
+              flush=True)
+        for m in methods:
+            best_other = min(stats[o]["mean"] for o in methods if o != m)
+            ratios.setdefault(m, []).append((stats[m]["mean"] / best_other, name))
+    print("\nratio of each method's mean error to the best other method's, worst world first:")
+    for m in methods:
+        worst = sorted(ratios[m], reverse=True)
+        print(f"  {m:<14} " + ", ".join(f"{r:.2f} {w}" for r, w in worst[:4]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
