@@ -8,6 +8,7 @@ each method's mean error to the best other method's (worst world first), which i
     python benchmarks/worlds.py                          # family seeds 0-2, six replays, 300 steps
     python benchmarks/worlds.py --seeds 100:103 --kinds family   # development seeds, family only
     python benchmarks/worlds.py --kinds replay --render disc     # replays, saturated-disc detector blobs
+    python benchmarks/worlds.py --methods heatmap,heatmap:pixels,kalman  # METHOD:SOURCE sets FilterOptions.source
 
 Replays need the real tracks: the first run fetches kloppy's source distribution from PyPI (about 40 MB,
 cached in ~/.cache/heatpf_jax/tracks; see heatpf_jax.sim.tracks).
@@ -21,7 +22,8 @@ import time
 
 import numpy as np
 
-from heatpf_jax.evaluate import Variant, evaluate_sequences
+from heatpf_jax.evaluate import ScenarioResult, Variant, evaluate_sequences
+from heatpf_jax.presets import FilterOptions
 from heatpf_jax.settings import parse_seeds
 
 METHODS = ("heatmap", "paper", "extended", "kalman", "conventional", "bitbots2018")
@@ -50,16 +52,29 @@ def family_worlds(seeds, steps, members):
         yield f"family/{member}", [simulate_family(member, s, num_steps=steps) for s in seeds]
 
 
-def replay_worlds(count, steps, render):
+def replay_worlds(count, steps, render, heights_kinds=("flat", "kept")):
     from heatpf_jax.sim.replay import replay_segments, replay_world
 
     pieces = replay_segments("skillcorner", min_length_s=30.0)[:count]
     draw = _disc_render if render == "disc" else None
     for robot in ("static", "walking"):
-        for heights in ("flat", "kept"):
+        for heights in heights_kinds:
             seqs = [replay_world(p, i, robot=robot, heights=heights, num_steps=steps, render=draw)[0]
                     for i, p in enumerate(pieces)]
             yield f"replay/{robot}/{heights}", seqs
+
+
+def evaluate(name, seqs, methods) -> ScenarioResult:
+    """Every method on the world's sequences; ``METHOD:SOURCE`` runs METHOD with ``FilterOptions(source=SOURCE)``."""
+    by_options: dict[str, list[Variant]] = {}
+    for m in methods:
+        method, _, source = m.partition(":")
+        by_options.setdefault(source or "auto", []).append(Variant(m, method))
+    parts = [evaluate_sequences(name, seqs, variants=v, options=FilterOptions(source=source))
+             for source, v in by_options.items()]
+    order = {m: i for i, m in enumerate(methods)}
+    rows = sorted((r for part in parts for r in part.methods), key=lambda r: order[r.variant.name])
+    return ScenarioResult(name, parts[0].truth, rows, parts[0].burn_in)
 
 
 def main(argv=None) -> int:
@@ -70,16 +85,16 @@ def main(argv=None) -> int:
     parser.add_argument("--members", help="family members, comma-separated (default: all)")
     parser.add_argument("--replays", type=int, default=6, help="replayed track pieces (default 6)")
     parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
+    parser.add_argument("--heights", default="flat,kept", help="replays' ball heights: flat, kept or both (default)")
     parser.add_argument("--methods", default=",".join(METHODS))
     args = parser.parse_args(argv)
     seeds = list(parse_seeds(args.seeds, 3))
     methods = args.methods.split(",")
-    variants = [Variant(m, m) for m in methods]
     worlds = []
     if "family" in args.kinds:
         worlds += list(family_worlds(seeds, args.steps, args.members.split(",") if args.members else None))
     if "replay" in args.kinds:
-        worlds += list(replay_worlds(args.replays, args.steps, args.render))
+        worlds += list(replay_worlds(args.replays, args.steps, args.render, tuple(args.heights.split(","))))
     print(f"methods: {', '.join(methods)}; family seeds {seeds[0]}..{seeds[-1]}; {args.steps} steps; "
           f"errors after step 10: mean [m] (radial rms / lateral rms)")
     header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
@@ -87,7 +102,7 @@ def main(argv=None) -> int:
     ratios = {}
     for name, seqs in worlds:
         t0 = time.perf_counter()
-        result = evaluate_sequences(name, seqs, variants=variants)
+        result = evaluate(name, seqs, methods)
         stats = {m.variant.name: m.stats(result.burn_in) for m in result.methods}
         cells = [f"{s['mean']:.3f} ({s['radial']:.3f}/{s['lateral']:.3f})" for s in stats.values()]
         print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",

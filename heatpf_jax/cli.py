@@ -291,20 +291,30 @@ def _eval_jobs(args) -> tuple[list[tuple[str, str | None]], range, int | None]:
     from heatpf_jax.sim.scenarios import DEFAULT_NUM_STEPS
 
     if args.input:
-        options = (("--scenario", args.scenario), ("--seeds", args.seeds), ("--steps", args.steps))
+        options = (("--scenario", args.scenario), ("--seeds", args.seeds), ("--steps", args.steps),
+                   ("--family", args.family or None))
         given = [o for o, v in options if v is not None]
         if given:
             raise ValueError(f"{given[0]}: applies to the simulated scenarios, not to --input")
         check_input(args.input)
         return [(Path(args.input).stem, None)], range(1), None
-    names = args.scenario or list(scenario_names())
-    unknown = [n for n in names if n not in scenario_names()]
+    known = _family_members() if args.family else scenario_names()
+    names = args.scenario or list(known)
+    unknown = [n for n in names if n not in known]
     if unknown:
-        raise ValueError(f"--scenario: unknown {unknown[0]!r} (known: {', '.join(scenario_names())})")
+        what = "family member" if args.family else "scenario"
+        raise ValueError(f"--scenario: unknown {what} {unknown[0]!r} (known: {', '.join(known)})")
     seeds = parse_seeds(args.seeds, 5)
     if args.steps is not None and args.steps < 1:
         raise ValueError(f"--steps: must be >= 1, got {args.steps}")
-    return [(n, n) for n in names], seeds, DEFAULT_NUM_STEPS if args.steps is None else args.steps
+    label = "family/{}" if args.family else "{}"
+    return [(label.format(n), n) for n in names], seeds, DEFAULT_NUM_STEPS if args.steps is None else args.steps
+
+
+def _family_members() -> tuple[str, ...]:
+    from heatpf_jax.sim.family import FAMILY
+
+    return FAMILY
 
 
 def _variants_with_params(variants, loaded, options, settings):
@@ -330,9 +340,9 @@ def _variants_with_params(variants, loaded, options, settings):
 
 
 def _cmd_eval(args) -> int:
-    from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, format_table, plot_scenario
+    from heatpf_jax.evaluate import DEFAULT_VARIANTS, evaluate_sequences, factor_breakdown, format_table, plot_scenario
     from heatpf_jax.sequence import load_sequence
-    from heatpf_jax.sim import simulate_with_info
+    from heatpf_jax.sim import simulate_family_with_info, simulate_with_info
 
     loaded = _params_file(args)
     if loaded is not None and args.method and loaded.method not in args.method:
@@ -366,12 +376,14 @@ def _cmd_eval(args) -> int:
                 check_burn_in(args.burn_in, sequences[0].num_steps)
                 bar.update(1)
             else:
-                sequences, targets = [], []
+                sequences, targets, factors = [], [], []
                 for seed in seeds:
                     bar.set_description(f"{name} seed {seed}")
-                    seq, info = simulate_with_info(scenario, seed, num_steps=steps)
+                    simulate = simulate_family_with_info if args.family else simulate_with_info
+                    seq, info = simulate(scenario, seed, num_steps=steps)
                     sequences.append(seq)
                     targets.append(info["balls_base"])
+                    factors.append(info.get("factors", {}))
                     bar.update(1)
 
             def tick(label: str) -> None:
@@ -383,6 +395,8 @@ def _cmd_eval(args) -> int:
                 progress=tick, targets=targets, variants=variants,
             )
             bar.write(format_table(result) + "\n")
+            if args.family and scenario is not None:
+                bar.write(factor_breakdown(result, factors) + "\n")
             if args.plot:
                 written += plot_scenario(result, args.plot)
     finally:
@@ -711,7 +725,11 @@ def _build_parser() -> argparse.ArgumentParser:
         "eval", parents=parent, help="the paper's comparison (Table I, Fig. 4, Fig. 6) on every scenario",
         epilog=f"Scenarios: {scenarios}.",
     )
-    p_eval.add_argument("--scenario", action="append", help=f"a scenario, repeatable (default: all): {scenarios}")
+    p_eval.add_argument("--scenario", action="append", help=f"a scenario, repeatable (default: all): {scenarios}; "
+                        "with --family, a family member")
+    p_eval.add_argument("--family", action="store_true", help="the world family instead of the fixed scenarios: "
+                        "each scenario type with its nuisance factors drawn per seed (heatpf_jax.sim.family), "
+                        "with a per-factor breakdown of the errors")
     p_eval.add_argument("--input", help="evaluate a recording (.npz with ground_truth) instead of the scenarios")
     p_eval.add_argument("--seeds", metavar="N|START:STOP", help="sequences per scenario: N (seeds 0..N-1, "
                         "default 5) or START:STOP (e.g. 200:216)")

@@ -28,6 +28,7 @@ __all__ = [
     "ScenarioResult",
     "Variant",
     "evaluate_sequences",
+    "factor_breakdown",
     "format_table",
     "mode_coverage",
     "plot_scenario",
@@ -194,6 +195,38 @@ def mode_coverage(
     d = np.linalg.norm(np.asarray(objects)[..., :, None, :] - np.asarray(mode_mean)[..., None, :, :], axis=-1)
     d = np.where(np.asarray(mode_valid)[..., None, :], d, np.inf)  # [..., T, B, K]
     return np.all(np.min(d, axis=-1) <= radius, axis=-1)
+
+
+def factor_breakdown(result: ScenarioResult, factors: list[dict]) -> str:
+    """Each method's mean error on the sequences whose factor is low against those where it is high.
+
+    Args:
+        result: the comparison on ``S`` sequences of one family member.
+        factors: per sequence, its drawn nuisance factors (``info["factors"]`` of
+            :func:`~heatpf_jax.sim.family.simulate_family_with_info`).
+
+    Returns:
+        One line per numeric factor that varies over the sequences: the factor's median, and per method the
+        mean error (after the burn-in) on the sequences at or below it and on those above it. A factor that
+        splits a method's error far apart is one the method is sensitive to. Empty without factors.
+    """
+    per_seq = {m.variant.name: m.errors[:, result.burn_in :].mean(axis=1) for m in result.methods}
+    names = [n for n in (factors[0] if factors else {}) if all(n in f for f in factors)]
+    lines = []
+    for name in names:
+        values = [factors[i][name] for i in range(len(factors))]
+        if not all(isinstance(v, int | float | np.number) and not isinstance(v, bool) for v in values):
+            continue
+        values = np.asarray(values, np.float64)
+        median = float(np.median(values))
+        low, high = values <= median, values > median
+        if not low.any() or not high.any():
+            continue
+        cells = "  ".join(f"{m} {e[low].mean():.3f}/{e[high].mean():.3f}" for m, e in per_seq.items())
+        lines.append(f"  {name:<24} <= {median:<9.4g} {cells}")
+    if not lines:
+        return f"{result.name}: no factor varies over these sequences"
+    return f"{result.name}: mean error [m] with the factor at or below / above its median\n" + "\n".join(lines)
 
 
 def format_table(result: ScenarioResult, reference: str = "conventional") -> str:

@@ -442,3 +442,18 @@ def test_eval_plot_with_methods_outside_the_papers_figures(inputs, tmp_path, cap
     written = [plots / "seq_errors.png", plots / "seq_traces.png"]
     assert sorted(plots.iterdir()) == written
     assert all(p.read_bytes()[:8] == PNG_MAGIC and _mode(p) == 0o640 for p in written)
+
+
+def test_eval_family_prints_each_member_with_a_factor_breakdown(capsys):
+    """``eval --family``: the member's table, named family/MEMBER, and a line per varying numeric factor."""
+    from heatpf_jax.sim.family import draw_factors
+
+    code = main(["eval", "--family", "--scenario", "standard", "--seeds", "2", "--steps", "12", "--method", "kalman"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "scenario family/standard: 2 sequence(s) x 12 steps" in out and "radial rms" in out
+    drawn = [draw_factors("standard", s) for s in (0, 1)]
+    varying = [n for n, v in drawn[0].items() if isinstance(v, int | float) and not isinstance(v, bool)
+               and v != drawn[1][n]]
+    breakdown = out.split("family/standard: mean error [m] with the factor at or below / above its median")[1]
+    assert len(varying) > 10 and all(f"  {name} " in breakdown for name in varying)

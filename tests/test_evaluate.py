@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatpf_jax.evaluate import MethodResult, ScenarioResult, Variant, format_table, radial_lateral
+from heatpf_jax.evaluate import MethodResult, ScenarioResult, Variant, factor_breakdown, format_table, radial_lateral
 
 
 def test_radial_lateral_by_hand(rng):
@@ -29,3 +29,17 @@ def test_table_reports_the_split_as_root_mean_squares(rng):
     assert st["lateral"] == np.sqrt(np.mean(lateral[:, 5:] ** 2))
     table = format_table(ScenarioResult("s", truth, [m], 5), reference="x")
     assert "radial rms" in table and f"{st['radial']:11.4f}" in table.splitlines()[-1]
+
+
+def test_factor_breakdown_splits_each_numeric_factor_at_its_median():
+    truth = np.zeros((4, 12, 2)) + [2.0, 0.0]
+    errors = np.array([[0.1] * 12, [0.2] * 12, [0.5] * 12, [0.9] * 12])
+    m = MethodResult(Variant("x", "paper"), truth, errors)
+    factors = [{"noise": 0.01, "shape": "disc", "count": 3}, {"noise": 0.02, "shape": "gaussian", "count": 3},
+               {"noise": 0.05, "shape": "disc", "count": 3}, {"noise": 0.06, "shape": "disc", "count": 3}]
+    text = factor_breakdown(ScenarioResult("family/standard", truth, [m], 2), factors)
+    lines = text.splitlines()
+    assert len(lines) == 2  # only "noise" is numeric and varies
+    assert lines[1].split()[:3] == ["noise", "<=", "0.035"] and "x 0.150/0.700" in lines[1]
+    empty = factor_breakdown(ScenarioResult("s", truth, [m], 2), [{}] * 4)
+    assert empty == "s: no factor varies over these sequences"

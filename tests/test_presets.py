@@ -34,14 +34,20 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     paper, heat, ext = (hp.build(name) for name in ("paper", "heatmap", "extended"))
     # paper: the 2019 filter as the default Filter of pieces (static position, eq. 1, plain resampling).
     assert paper.model == hp.Filter() and paper.params == hp.Filter().default_params()
-    # heatmap: the same pipeline with a velocity state and the range-aware observation.
+    # heatmap: the same pipeline with blob centroids, a velocity state and the range-aware observation.
+    assert isinstance(heat.model.source, hp.CentroidSource) and heat.params.source.max_spill == 1.5
     assert isinstance(heat.model.motion, hp.ConstantVelocity)
     assert isinstance(heat.model.observation, hp.FootprintTemplate)
     assert [type(i) for i in heat.model.injectors] == [hp.UniformExplorers, hp.MeasurementExplorers]
     assert heat.model._replace(
-        motion=paper.model.motion, observation=paper.model.observation, injectors=paper.model.injectors
+        source=paper.model.source, motion=paper.model.motion, observation=paper.model.observation,
+        injectors=paper.model.injectors,
     ) == paper.model
     assert heat.params.observation.k == 10
+    # source=pixels gives the pixel source back (without the centroid source's parameters).
+    pixels = hp.build("heatmap", hp.FilterOptions(source="pixels"))
+    assert pixels.model == heat.model._replace(source=paper.model.source) and pixels.params.source == hp.SourceParams()
+    assert isinstance(hp.build("paper", hp.FilterOptions(source="centroids")).model.source, hp.CentroidSource)
     gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
     assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05
     # extended: mass inertia, cluster-wise resampling, random and measurement particles, dominant mode.
