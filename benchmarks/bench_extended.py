@@ -10,8 +10,8 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``paper``: the 2019 filter (static position, eq. 1, systematic resampling, explorers);
 * ``paper + velocity``: the same with the constant-velocity motion model;
 * ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.ClusterResampling`;
-* ``heatmap``: the product's defaults (blob centroids, velocity, range-aware template over k = 10);
-* ``heatmap (pixel source)``: the same with every pixel where it lies (``--set source=pixels``);
+* ``heatmap``: the product's defaults (velocity, range-aware template over k = 10);
+* ``heatmap (centroid source)``: the same with every pixel at its blob's centroid (``--set source=centroids``);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
@@ -52,8 +52,8 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
     }
     for name in ("heatmap", "extended"):
         out[name] = tuple(hp.build(name, options))
-    # heatmap before its blob centroids: every pixel where it lies.
-    out["heatmap (pixel source)"] = tuple(hp.build("heatmap", options._replace(source="pixels")))
+    # heatmap with every pixel at its blob's centroid (--set source=centroids).
+    out["heatmap (centroid source)"] = tuple(hp.build("heatmap", options._replace(source="centroids")))
     with_memory = options._replace(memory="tracks")
     for name in ("paper", "heatmap", "extended"):
         out[f"{name} + memory"] = tuple(hp.build(name, with_memory))

@@ -117,10 +117,11 @@ class FilterOptions(NamedTuple):
             ``"tracks"`` (a track table of ``max_tracks`` slots fed by the modes, or the estimate when
             ``modes`` is ``"none"``, with hint particles for lost tracks).
         max_tracks: the memory's capacity.
-        source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"centroids"`` for
-            ``heatmap``, ``"pixels"`` for ``paper`` and ``extended``), ``"pixels"`` (every pixel at or above
-            the threshold, where it lies: the paper's source) or ``"centroids"`` (every such pixel at its blob's
-            centroid in the image, :class:`~heatpf_jax.sources.CentroidSource`). ``conventional``, ``kalman`` and
+        source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"pixels"`` for
+            ``paper``, ``heatmap`` and ``extended``), ``"pixels"`` (every pixel at or above the threshold, where
+            it lies: the paper's source) or ``"centroids"`` (every such pixel at its blob's centroid in the
+            image, :class:`~heatpf_jax.sources.CentroidSource`; with ``heatmap`` its blobs that spill out of a
+            ground ball's window by more than 1.5 are dropped). ``conventional``, ``kalman`` and
             ``bitbots2018`` keep their own.
     """
 
@@ -219,24 +220,23 @@ def paper_filter(options: FilterOptions = FilterOptions()) -> Filter:
 
 
 def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
-    """The product's heat-map filter (``--method heatmap``): the paper's pipeline with every above-threshold
-    pixel moved to its blob's centroid in the image before it is projected
-    (:class:`~heatpf_jax.sources.CentroidSource`: the blob's radial position as a Kalman filter's centroid
-    has it, one measurement per pixel as eq. 1 wants, blobs larger than a ground ball refused), a velocity
-    state (:class:`~heatpf_jax.motion_velocity.ConstantVelocity`) and a range-aware matched filter over the
-    k nearest measurements (:class:`~heatpf_jax.observation_range.FootprintTemplate`, each kernel as wide as
+    """The product's heat-map filter (``--method heatmap``): the paper's pipeline (every above-threshold pixel
+    a measurement; ``FilterOptions(source="centroids")`` moves each to its blob's centroid in the image
+    first, :class:`~heatpf_jax.sources.CentroidSource`) with a velocity state
+    (:class:`~heatpf_jax.motion_velocity.ConstantVelocity`) and a range-aware matched filter over the k nearest
+    measurements (:class:`~heatpf_jax.observation_range.FootprintTemplate`, each kernel as wide as
     its pixel's ground footprint) instead of eq. (1)'s inverse distance, and explorers drawn from the
     measurements beside the uniform ones (:class:`~heatpf_jax.injection_sensor.MeasurementExplorers`);
     its default params are :func:`heatmap_params`."""
-    base = _particle_filter(options, _pixels(options, "centroids"), observation="range_aware")
+    base = _particle_filter(options, _pixels(options), observation="range_aware")
     return _with_hints(base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers())))
 
 
 def heatmap_params(model: Filter) -> FilterParams:
     """The heat-map filter's defaults: white-noise acceleration 5 m/s^2, new particles' speed std 3 m/s (a
-    kicked ball), aging 0.6 per step (chosen on simulated seeds 100-103), and with the centroid source a blob
-    that spills out of its ground-ball window by more than 1.5 refused (chosen on the world family's seeds
-    100-102 by the worst member, README "Defaults")."""
+    kicked ball), aging 0.6 per step (chosen on simulated seeds 100-103), and with the centroid source
+    (``source="centroids"``) a blob that spills out of its ground-ball window by more than 1.5 refused
+    (chosen on the world family's seeds 100-102)."""
     updates = {"motion.accel_std": 5.0, "motion.spawn_speed_std": 3.0, "buffer.aging": 0.6, "modes.bandwidth": 0.1,
                "source.max_spill": 1.5}
     if isinstance(model.observation, GaussianKernel):

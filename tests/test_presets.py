@@ -34,8 +34,8 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     paper, heat, ext = (hp.build(name) for name in ("paper", "heatmap", "extended"))
     # paper: the 2019 filter as the default Filter of pieces (static position, eq. 1, plain resampling).
     assert paper.model == hp.Filter() and paper.params == hp.Filter().default_params()
-    # heatmap: the same pipeline with blob centroids, a velocity state and the range-aware observation.
-    assert isinstance(heat.model.source, hp.CentroidSource) and heat.params.source.max_spill == 1.5
+    # heatmap: the same pipeline with a velocity state and the range-aware observation.
+    assert isinstance(heat.model.source, hp.PixelSource)
     assert isinstance(heat.model.motion, hp.ConstantVelocity)
     assert isinstance(heat.model.observation, hp.FootprintTemplate)
     assert [type(i) for i in heat.model.injectors] == [hp.UniformExplorers, hp.MeasurementExplorers]
@@ -44,10 +44,12 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
         injectors=paper.model.injectors,
     ) == paper.model
     assert heat.params.observation.k == 10
-    # source=pixels gives the pixel source back (without the centroid source's parameters).
-    pixels = hp.build("heatmap", hp.FilterOptions(source="pixels"))
-    assert pixels.model == heat.model._replace(source=paper.model.source) and pixels.params.source == hp.SourceParams()
-    assert isinstance(hp.build("paper", hp.FilterOptions(source="centroids")).model.source, hp.CentroidSource)
+    # source=centroids: each pixel at its blob's centroid, heatmap's spill gate 1.5 (paper's: none).
+    centroids = hp.build("heatmap", hp.FilterOptions(source="centroids"))
+    assert centroids.model == heat.model._replace(source=hp.CentroidSource())
+    assert centroids.params.source == hp.CentroidParams(max_spill=1.5)
+    assert hp.build("heatmap", hp.FilterOptions(source="pixels")) == heat
+    assert hp.build("paper", hp.FilterOptions(source="centroids")).params.source == hp.CentroidParams()
     gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
     assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05
     # extended: mass inertia, cluster-wise resampling, random and measurement particles, dominant mode.
