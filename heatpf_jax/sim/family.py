@@ -101,6 +101,7 @@ from heatpf_jax.sim.detector import (
     sphere_outline,
 )
 from heatpf_jax.sim.render import BALL_RADIUS, DEFAULT_INTRINSICS, HEATMAP_SHAPE
+from heatpf_jax.sim.scenarios import check_run_args
 from heatpf_jax.sim.world import (
     bursty_mask,
     compose_pose,
@@ -667,17 +668,7 @@ def _render(w: _World, f: Mapping[str, Any], seed: int, member: str, num_steps: 
 # --- Public entry points ------------------------------------------------------------------------------------------
 
 
-def _check_args(seed, num_steps, dt, shrink) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
-    num_steps = DEFAULT_NUM_STEPS if num_steps is None else num_steps
-    if isinstance(num_steps, bool) or not isinstance(num_steps, int | np.integer) or num_steps < 1:
-        raise ValueError(f"num_steps: must be a positive integer, got {num_steps!r}")
-    if not (isinstance(dt, int | float | np.floating) and np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
-    if isinstance(shrink, bool) or not isinstance(shrink, int | np.integer) or not 1 <= shrink <= 50:
-        raise ValueError(f"shrink: must be an integer in [1, 50], got {shrink!r}")
-    return int(num_steps)
+_check_args = check_run_args
 
 
 def simulate_family_with_info(

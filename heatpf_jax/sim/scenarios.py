@@ -453,6 +453,11 @@ def _render(plan: _Plan, num_steps: int, dt: float, intrinsics: np.ndarray, shap
 def _check_args(scenario, seed, num_steps, dt, shrink) -> int:
     if scenario not in SCENARIOS:
         raise ValueError(f"scenario: unknown scenario {scenario!r}; valid names: {', '.join(SCENARIOS)}")
+    return check_run_args(seed, num_steps, dt, shrink)
+
+
+def check_run_args(seed, num_steps, dt, shrink) -> int:
+    """Checks a simulation's seed, steps, period and shrink (one line naming the field); the number of steps."""
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
     num_steps = DEFAULT_NUM_STEPS if num_steps is None else num_steps
