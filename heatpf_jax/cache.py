@@ -122,14 +122,19 @@ def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path
 
 
 @contextlib.contextmanager
-def compilation_cache(enabled: bool = True) -> Iterator[Path | None]:
+def compilation_cache(
+    enabled: bool = True, directory: str | os.PathLike | None = None
+) -> Iterator[Path | None]:
     """:func:`enable_compilation_cache` for the duration of a block; JAX's cache settings are restored after it.
 
     The ``heatpf`` command runs inside this, so calling its ``main()`` from Python (a notebook, the
-    tests) leaves the process's JAX configuration as it found it.
+    tests) leaves the process's JAX configuration as it found it; :class:`~heatpf_jax.tracker.Tracker`
+    compiles its step inside it.
 
     Args:
         enabled: ``False`` leaves the cache as it is (``--no-cache``).
+        directory: where to keep compiled programs; ``None`` (default) for the environment's choice
+            (:func:`cache_directory`).
 
     Yields:
         The directory in use, or ``None``.
@@ -142,7 +147,7 @@ def compilation_cache(enabled: bool = True) -> Iterator[Path | None]:
 
     saved = {name: getattr(jax.config, name) for name in _SETTINGS}
     try:
-        yield enable_compilation_cache()
+        yield enable_compilation_cache(directory)
     finally:
         if any(getattr(jax.config, name) != value for name, value in saved.items()):
             for name, value in saved.items():

@@ -222,9 +222,20 @@ def _cmd_run(args) -> int:
     tracks_out = _extra_output("--tracks", args.tracks, args, {"--output": out, "--modes": modes_out})
     if tracks_out is not None and options.memory == "none":
         raise ValueError("--tracks: the filter has no long-term memory; add --set memory=tracks")
+    plot_out = _extra_output("--plot", args.plot, args, {"--output": out, "--modes": modes_out,
+                                                          "--tracks": tracks_out})
+    if plot_out is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("matplotlib") is None:
+            raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"')
+    elif args.plot_step is not None:
+        raise ValueError("--plot-step: only with --plot")
     seq = load_sequence(args.input)
     if seq.ground_truth is not None:
         check_burn_in(args.burn_in, seq.num_steps)
+    if args.plot_step is not None and not 0 <= args.plot_step < seq.num_steps:
+        raise ValueError(f"--plot-step: must be in [0, {seq.num_steps - 1}], got {args.plot_step}")
     mean, cov, modes, tracks, elapsed = _run_filter(seq, args, options, settings)
     write_estimates_csv(out, mean, cov)
     if modes_out is not None:
@@ -238,7 +249,23 @@ def _cmd_run(args) -> int:
     if tracks_out is not None:
         print(f"wrote {tracks_out} ({len(np.unique(tracks.id[tracks.valid]))} tracks, "
               f"{int(np.sum(tracks.valid))} rows over {seq.num_steps} steps)")
+    if plot_out is not None:
+        _plot_run(plot_out, seq, mean, cov, args, options, settings)
     return 0
+
+
+def _plot_run(path: Path, seq, mean, cov, args, options, settings) -> None:
+    """``run --plot``: the picture of the run (:mod:`heatpf_jax.run_plot`), its step's state replayed exactly."""
+    import jax
+
+    from heatpf_jax.run_plot import default_step, plot_run, state_at
+
+    step = default_step(seq.has_heatmap) if args.plot_step is None else args.plot_step
+    model, params = method_with_settings(args.method, options, settings)
+    state = state_at(jax.random.key(args.seed), seq, params, model, step)
+    plot_run(path, seq, mean, cov, step, state, title=f"{Path(args.input).name}: {args.method}",
+             burn_in=args.burn_in)
+    print(f"wrote {path} (step {step})")
 
 
 def _extra_output(option: str, path, args, others) -> Path | None:
@@ -545,6 +572,31 @@ def _print_best(out: Path, record, columns: list[str], top: int, burn_in: int) -
     for r in rows[:top]:
         print("  " + "  ".join(f"{c:>12}" for c in r[1:]))
     print(f"all results: {out}")
+    for name in idle_axes(columns[1:-3], [r[1:-3] for r in rows], [[float(v) for v in r[-3:]] for r in rows]):
+        warnings.warn(f"--grid {name}: its values gave the same errors in every row; the setting changes nothing "
+                      "here (a piece this method does not use, or an effect these sequences never show)")
+
+
+def idle_axes(names: list[str], values: list[list[str]], errors: list[list[float]]) -> list[str]:
+    """The grid axes (``names``) along which nothing changes: with two values or more, and every group of rows
+    that differ only in that axis with the same errors (relative tolerance 1e-9).
+
+    Args:
+        names: the axes' names.
+        values: per row, its value on each axis (as written).
+        errors: per row, its error statistics.
+    """
+    idle = []
+    for i, name in enumerate(names):
+        if len({v[i] for v in values}) < 2:
+            continue
+        groups: dict[tuple, list[list[float]]] = {}
+        for v, e in zip(values, errors, strict=True):
+            groups.setdefault(tuple(v[:i] + v[i + 1 :]), []).append(e)
+        compared = [g for g in groups.values() if len(g) > 1]
+        if compared and all(np.allclose(g, g[0], rtol=1e-9, atol=0.0) for g in compared):
+            idle.append(name)
+    return idle
 
 
 # ------------------------------------------------------------------------------------------- params
@@ -713,7 +765,13 @@ def _build_parser() -> argparse.ArgumentParser:
                        "kmeans|gmm, default meanshift; --set max_modes=K)")
     p_run.add_argument("--tracks", metavar="TRACKS.csv", help="also write the long-term memory's tracks per step: "
                        "t,id,age,x,y,vx,vy, one row per track (needs --set memory=tracks)")
-    p_run.add_argument("--force", action="store_true", help="replace existing --output, --modes and --tracks files")
+    p_run.add_argument("--plot", metavar="RUN.png", help="also draw the run: the estimate against the ground truth, "
+                       "the error and spread over time, and one step's heat map, measurements and particles (needs "
+                       "matplotlib: pip install 'heatpf-jax[plot]')")
+    p_run.add_argument("--plot-step", type=int, default=None, metavar="N", help="the step --plot draws (default: the "
+                       "last step with a heat map)")
+    p_run.add_argument("--force", action="store_true", help="replace existing --output, --modes, --tracks and "
+                       "--plot files")
     p_run.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     _add_burn_in(p_run)
     _add_set(p_run)
@@ -792,10 +850,11 @@ def _build_parser() -> argparse.ArgumentParser:
                           "(`heatpf tune --output`), --set on top")
     p_params.set_defaults(func=_cmd_params)
 
-    from heatpf_jax import cli_rgb, rosbag_import
+    from heatpf_jax import cli_rgb, cli_simulate, rosbag_import
 
     cli_rgb.add_parser(sub, parent)
     rosbag_import.add_parser(sub, parent)
+    cli_simulate.add_parsers(sub, parent)
     return parser
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import warnings
 from pathlib import Path
 from typing import NamedTuple
 
@@ -177,6 +178,12 @@ def _tune_summary(result, start: dict, method: str, loss: str) -> None:
     rows += [(n, f"{start[n]:.6g}", f"{v[-1]:.6g}") for n, v in result.path.items()]
     print("\n".join(_table(rows)))
     print(f"training loss: {h[0]:.6g} at step 0, {h[-1]:.6g} at step {len(h) - 1}")
+    for name, values in result.path.items():
+        values = np.asarray(values, np.float64)
+        if len(h) > 1 and np.all(values == values.flat[0]):
+            warnings.warn(f"--tune: {name} kept its start value {start[name]:.6g} through {len(h)} gradient steps: "
+                          "the loss has no gradient in it on these sequences (e.g. an odometry noise on a robot "
+                          "that does not move); leave it out of --tune or tune on sequences that exercise it")
     if len(result.validation):
         pairs = zip(result.validation_steps, result.validation, strict=True)
         print("validation loss: " + ", ".join(f"{v:.6g} (step {int(s)})" for s, v in pairs))

@@ -16,6 +16,13 @@ absolute value would also light up every position whose ring, not its window, ho
 one ball radius around it. The normalisation is fixed (``1 - theta``): a per-frame maximum would turn
 noise into full activation in a frame without the ball.
 
+**An absolute scale.** ``rho`` of the object itself stays below 1 (by how much depends on the reference's
+spread and on what its ring holds): ``rho`` is divided by :attr:`ColourParams.reference_score` before
+``theta``, the reference object's own ``rho`` (:func:`heatpf_jax.colour_reference.reference_score`), so that
+the object looking as it does in the reference maps to about 1 and the filters' own threshold applies;
+``theta`` is then a share of that score. ``white`` brings every frame under the reference's light first
+(:func:`~heatpf_jax.colour_space.balance`): a colour cast moves a white object across chromaticity bins.
+
 The window follows the ball's expected image size: :func:`expected_radius_px` gives, for every pixel,
 the radius in pixels of a ball resting on the ground whose centre projects there (from the camera pose
 and intrinsics, like the heat-map projection of III-A); the object window's half-size is
@@ -24,7 +31,9 @@ from summed-area tables (integral images, ``uint16``, :func:`~heatpf_jax.colour_
 bin indicators, four corner gathers per box. Only
 bins where the reference has mass contribute to eq. 2-3, so the tables are built for the ``top_bins``
 bins of largest reference mass: exact whenever the reference has at most ``top_bins`` non-empty bins
-(:func:`~heatpf_jax.colour_space.exact_top_bins` gives the smallest such power of two).
+(:func:`~heatpf_jax.colour_space.exact_top_bins` gives the smallest such power of two). The tables hold 64
+bins each (a reference with more gets several, summed in a :func:`~jax.lax.scan`): one table of 128 bins
+took 4-5 times as long per frame as one of 64, its boxes no longer gathered from the cache.
 
 **The window at the blob, not at the pixel.** A window that follows each pixel's own expected size is
 larger below a ball than above it (lower rows look at nearer ground), and the box score is not flat in the
@@ -48,9 +57,20 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Float, UInt8
 
-from heatpf_jax.colour_space import DEFAULT_BINS, MAX_BOX_HALF, bin_table, box_counts
+from heatpf_jax.colour_space import DEFAULT_BINS, MAX_BOX_HALF, balance, box_counts, rgi_bins
 
-__all__ = ["ColourParams", "blob_half_size", "colour_heatmaps", "colour_likelihood", "expected_radius_px"]
+__all__ = [
+    "ColourParams",
+    "blob_half_size",
+    "colour_heatmaps",
+    "colour_likelihood",
+    "expected_radius_px",
+    "window_coefficient",
+    "window_half_sizes",
+]
+
+
+_CHUNK = 64  # bins per summed-area table (_chunk_tables): 64 bins were the fastest of 16-64 per bin
 
 
 class ColourParams(NamedTuple):
@@ -66,6 +86,10 @@ class ColourParams(NamedTuple):
         max_half_size: largest object window half-size, pixels.
         blob_reach: the neighbourhood of :func:`blob_half_size` (half-size over the pixel's expected
             radius); 2 and 3 gave the same centroids on seeds 100-101.
+        reference_score: the coefficient ``rho`` that maps to activation 1: ``rho`` is divided by it before
+            ``theta`` is applied. 1 (the default) keeps the coefficient's own scale; the reference's own
+            score (:func:`heatpf_jax.colour_reference.reference_score`, what ``heatpf colour`` uses) puts the
+            maps on an absolute scale, the object as it looks in the reference at about 1.
     """
 
     theta: float = 0.2
@@ -74,6 +98,7 @@ class ColourParams(NamedTuple):
     min_half_size: float = 1.0
     max_half_size: float = 25.0
     blob_reach: float = 2.0
+    reference_score: float = 1.0
 
 
 def expected_radius_px(
@@ -131,21 +156,98 @@ def _box_sums(table, radius, shape):
     return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
 
 
-def _likelihood(tables, radius: Float[Array, "h w"], params: ColourParams) -> Float[Array, "h w"]:
-    """Eq. 1-3 at every pixel from the summed-area tables, the window from ``radius`` (one pass)."""
-    shape = radius.shape
+def window_half_sizes(radius: Float[ArrayLike, "*n"], params: ColourParams) -> tuple[Array, Array]:
+    """The object window's and the ring's outer half-sizes (pixels, integral ``float32``) for an expected ball
+    radius: ``window_scale * radius`` rounded and clipped to ``[min_half_size, max_half_size]``, and
+    ``ring_scale`` times that (at least one pixel more, at most :data:`~heatpf_jax.colour_space.MAX_BOX_HALF`)."""
+    radius = jnp.asarray(radius, jnp.float32)
     inner = jnp.clip(jnp.round(params.window_scale * radius), params.min_half_size, params.max_half_size)
     outer = jnp.maximum(jnp.round(params.ring_scale * inner), inner + 1.0)
     outer = jnp.minimum(outer, float(MAX_BOX_HALF))  # the uint16 tables count boxes below 2^16 pixels exactly
-    in_sum, in_count = _box_sums(tables.table, inner, shape)
-    out_sum, out_count = _box_sums(tables.table, outer, shape)
-    p_obj = in_sum / jnp.maximum(in_count, 1.0)[..., None]
+    return inner, outer
+
+
+def window_coefficient(
+    table: Float[Array, "h1 w1 k"], q_top: Float[Array, " k"], inner: Float[Array, "h w"], outer: Float[Array, "h w"]
+) -> Float[Array, "h w"]:
+    """Eq. 2-3's background-subtracted Bhattacharyya coefficient ``rho`` at every pixel (before ``theta``).
+
+    Args:
+        table: a summed-area table of bin counts (:class:`~heatpf_jax.colour_space.BinTable` ``.table``, or
+            any float table of per-pixel bin masses over the same ``K`` bins).
+        q_top: the reference's values on those bins.
+        inner, outer: per pixel, the object window's and the ring's outer half-sizes (:func:`window_half_sizes`).
+
+    Returns:
+        ``float32 [H, W]``, ``sum_u sqrt(q_u) max(0, sqrt(p_obj(u)) - sqrt(p_bck(u)))``.
+    """
+    shape = inner.shape
+    in_sum, in_count = _box_sums(table, inner, shape)
+    out_sum, out_count = _box_sums(table, outer, shape)
+    # Clipped at 0: a float table's box sums can come out a rounding error below it (uint16 ones are exact).
+    p_obj = jnp.maximum(in_sum, 0.0) / jnp.maximum(in_count, 1.0)[..., None]
     ring = jnp.maximum(out_count - in_count, 1.0)[..., None]
-    p_bck = (out_sum - in_sum) / ring
+    p_bck = jnp.maximum(out_sum - in_sum, 0.0) / ring
     # sqrt of a count ratio: exact zeros stay zero (no NaN gradient needed here: counts are data).
-    rho = jnp.sum(jnp.sqrt(tables.q_top)[None, None, :] * jnp.maximum(jnp.sqrt(p_obj) - jnp.sqrt(p_bck), 0.0), axis=-1)
-    act = jnp.maximum(rho - params.theta, 0.0) / (1.0 - params.theta)
+    return jnp.sum(jnp.sqrt(q_top)[None, None, :] * jnp.maximum(jnp.sqrt(p_obj) - jnp.sqrt(p_bck), 0.0), axis=-1)
+
+
+def _likelihood(tables, radius: Float[Array, "h w"], params: ColourParams) -> Float[Array, "h w"]:
+    """Eq. 1-3 at every pixel from the summed-area tables, the window from ``radius`` (one pass)."""
+    inner, outer = window_half_sizes(radius, params)
+    rho = _chunked_coefficient(tables, inner, outer)
+    act = jnp.maximum(rho / params.reference_score - params.theta, 0.0) / (1.0 - params.theta)
     return jnp.where(radius > 0, jnp.clip(act, 0.0, 1.0), 0.0)
+
+
+class _ChunkTables(NamedTuple):
+    table: Array  # uint16 [n, H + 1, W + 1, C]: the summed-area tables of C bins each
+    q_top: Array  # float32 [n, C]: the reference's values on those bins (0 for padding)
+
+
+class _Ranks(NamedTuple):
+    rank: Array  # int32 [m]: each bin's place among the reference's K heaviest (n * C: not among them)
+    q_top: Array  # float32 [n, C]: the reference's values on those bins, C to a chunk (0 for padding)
+
+
+def _reference_ranks(reference, top_bins: int, chunk: int) -> _Ranks:
+    """The reference's ``top_bins`` heaviest bins in chunks of ``chunk`` (padded with empty ones): computed once
+    for every frame."""
+    q = jnp.asarray(reference, jnp.float32)
+    m = q.shape[0]
+    k = min(int(top_bins), m)
+    q_top, top_index = lax.top_k(q, k)
+    n = -(-k // chunk)
+    rank = jnp.full((m,), n * chunk, jnp.int32).at[top_index].set(jnp.arange(k, dtype=jnp.int32))
+    return _Ranks(rank, jnp.pad(q_top, (0, n * chunk - k)).reshape(n, chunk))
+
+
+def _chunk_tables(image, ranks: _Ranks, bins) -> _ChunkTables:
+    """:func:`~heatpf_jax.colour_space.bin_table`'s tables, a chunk of bins to a table: each table stays small
+    enough for the cache while its boxes are gathered (at 128 bins in one table a frame took 4-5 times as long
+    as at 64). A :func:`~jax.lax.scan` over the chunks keeps one compiled body whatever the number of bins."""
+    n, chunk = ranks.q_top.shape
+    ranked = ranks.rank[rgi_bins(image, bins)]  # [H, W]: each pixel's place among the K bins (n * chunk: none)
+
+    def one(_, c):
+        wanted = c * chunk + jnp.arange(chunk, dtype=jnp.int32)
+        onehot = (ranked[..., None] == wanted[None, None, :]).astype(jnp.uint16)
+        table = lax.associative_scan(jnp.add, lax.associative_scan(jnp.add, onehot, axis=0), axis=1)
+        return None, jnp.pad(table, ((1, 0), (1, 0), (0, 0)))
+
+    _, tables = lax.scan(one, None, jnp.arange(n, dtype=jnp.int32))
+    return _ChunkTables(tables, ranks.q_top)
+
+
+def _chunked_coefficient(tables: _ChunkTables, inner, outer) -> Float[Array, "h w"]:
+    """:func:`window_coefficient` summed over the chunks' tables."""
+
+    def one(total, chunk):
+        table, q_top = chunk
+        return total + window_coefficient(table, q_top, inner, outer), None
+
+    total, _ = lax.scan(one, jnp.zeros(inner.shape, jnp.float32), (tables.table, tables.q_top))
+    return total
 
 
 def blob_half_size(
@@ -193,6 +295,7 @@ def colour_likelihood(
     bins: tuple[int, int, int] = DEFAULT_BINS,
     top_bins: int = 64,
     blob_window: bool = True,
+    white: Float[ArrayLike, "3"] | None = None,
 ) -> Float[Array, "h w"]:
     """The colour likelihood map of one frame (eq. 1-3, see the module docstring).
 
@@ -208,12 +311,22 @@ def colour_likelihood(
             many non-empty bins.
         blob_window: a second pass with the window at each response's centroid (:func:`blob_half_size`,
             the default); ``False``: one pass, every pixel with its own window.
+        white: ``[3]`` the channel means of the reference's light: the frame is first brought under it
+            (:func:`~heatpf_jax.colour_space.balance`); ``None`` (the default) takes the frame as it is.
 
     Returns:
         ``float32 [H, W]`` activations in ``[0, 1]``.
     """
+    ranks = _reference_ranks(reference, top_bins, min(int(top_bins), _CHUNK))
+    return _frame_map(image, ranks, half_size, params, bins, blob_window, white)
+
+
+def _frame_map(image, ranks: _Ranks, half_size, params: ColourParams, bins, blob_window: bool, white):
+    """:func:`colour_likelihood` with the reference's bins already ranked."""
     image = jnp.asarray(image)
-    tables = bin_table(image, reference, top_bins, bins)
+    if white is not None:
+        image = balance(image, white)
+    tables = _chunk_tables(image, ranks, bins)
     radius = jnp.asarray(half_size, jnp.float32)
     act = _likelihood(tables, radius, params)
     if blob_window:
@@ -233,17 +346,17 @@ def colour_heatmaps(
     bins: tuple[int, int, int] = DEFAULT_BINS,
     top_bins: int = 64,
     blob_window: bool = True,
+    white: Float[ArrayLike, "3"] | None = None,
 ) -> Float[Array, "t h w"]:
     """:func:`colour_likelihood` of every frame, the window from each frame's camera pose (``lax.map``:
-    one frame's tables in memory at a time)."""
+    one frame's tables in memory at a time); ``white`` as there."""
     images = jnp.asarray(images)
     shape = images.shape[1:3]
+    ranks = _reference_ranks(reference, top_bins, min(int(top_bins), _CHUNK))  # once, not in every frame
 
     def one(frame):
         image, pose = frame
         radius = expected_radius_px(intrinsics, pose, ball_radius, shape)
-        return colour_likelihood(
-            image, reference, radius, params, bins=bins, top_bins=top_bins, blob_window=blob_window
-        )
+        return _frame_map(image, ranks, radius, params, bins, blob_window, white)
 
     return lax.map(one, (images, jnp.asarray(cam_to_base, jnp.float32)))

@@ -16,6 +16,7 @@ import math
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 from jaxtyping import Array, ArrayLike, Float, Int, UInt8, UInt16
 
@@ -24,8 +25,10 @@ __all__ = [
     "MAX_BOX_HALF",
     "MAX_BOX_PIXELS",
     "BinTable",
+    "balance",
     "bin_table",
     "box_counts",
+    "channel_means",
     "exact_top_bins",
     "histogram",
     "num_bins",
@@ -59,7 +62,8 @@ def rgi_bins(image: UInt8[ArrayLike, "h w 3"], bins: tuple[int, int, int] = DEFA
     """The r'g'I histogram bin ``h(x_i)`` of every pixel (eq. 1's bin function).
 
     Args:
-        image: ``uint8 [H, W, 3]`` RGB (any leading axes are kept).
+        image: ``uint8 [H, W, 3]`` RGB (any leading axes are kept), or integral values in ``[0, 255]`` of
+            another dtype (:func:`balance`).
         bins: ``(n_r, n_g, n_I)`` bins of ``r / g``, ``g / b`` and the intensity.
 
     Returns:
@@ -72,6 +76,34 @@ def rgi_bins(image: UInt8[ArrayLike, "h w 3"], bins: tuple[int, int, int] = DEFA
     i_g = _angle_bin(g, b, n_g)
     i_i = jnp.clip(jnp.floor((r + g + b) / 3.0 * (n_i / 256.0)), 0, n_i - 1).astype(jnp.int32)
     return (i_r * n_g + i_g) * n_i + i_i
+
+
+def channel_means(images: UInt8[ArrayLike, "*t h w 3"]) -> Float[Array, "3"]:
+    """The mean R, G and B of ``images`` (all frames and pixels together): the light they were taken in, for
+    :func:`balance` (the grey-world assumption)."""
+    return jnp.mean(jnp.asarray(images).astype(jnp.float32).reshape(-1, 3), axis=0)
+
+
+def balance(image: UInt8[ArrayLike, "h w 3"], white: Float[ArrayLike, "3"]) -> Float[Array, "h w 3"]:
+    """``image`` under the light ``white``: each channel scaled by ``white / channel mean`` (von Kries's
+    diagonal adaptation with the grey-world estimate of the light), rounded and clipped to ``[0, 255]``.
+
+    A change of the light's level or colour (a cloud, a warmer lamp, the camera's white balance) multiplies
+    each channel of the whole frame by its own factor; the r'g'I bins of a white object move with it (a
+    cast of 10 % in ``g / b`` is most of a chromaticity bin). Scaling every frame's channel means to those
+    of the reference's frame undoes it, whatever moves in the frame (a small object shifts the means little).
+
+    Args:
+        image: ``uint8 [H, W, 3]`` RGB.
+        white: ``[3]`` the channel means to scale to (:func:`channel_means` of the reference's frame).
+
+    Returns:
+        ``float32 [H, W, 3]`` integral values in ``[0, 255]`` (the input for :func:`rgi_bins`).
+    """
+    rgb = jnp.asarray(image).astype(jnp.float32)
+    mean = jnp.mean(rgb.reshape(-1, 3), axis=0)
+    gain = jnp.asarray(white, jnp.float32) / jnp.maximum(mean, 1.0)
+    return jnp.clip(jnp.round(rgb * gain[None, None, :]), 0.0, 255.0)
 
 
 MAX_BOX_PIXELS = 2**16 - 1  # box counts from a uint16 table are exact below this many pixels
@@ -144,9 +176,9 @@ def box_counts(
 def exact_top_bins(reference: Float[ArrayLike, " m"], smallest: int = 8) -> int:
     """The smallest power of two (at least ``smallest``, at most ``m``) not below the reference's non-empty
     bins: the ``top_bins`` that keeps :func:`bin_table` exact at the least cost (host-side, concrete input)."""
-    q = jnp.asarray(reference)
+    q = np.asarray(reference)
     m = int(q.shape[0])
-    nonzero = int(jnp.sum(q > 0))
+    nonzero = int(np.count_nonzero(q > 0))
     k = smallest
     while k < nonzero:
         k *= 2

@@ -20,10 +20,17 @@ and ``model.init(k_init, params)``. The key of step ``t`` (``t = 0, 1, ...`` sin
 
 Like ``run``, the first step after construction or a reset ignores its odometry (there is no
 previous base frame).
+
+**Starting fast.** The step is compiled inside JAX's persistent compilation cache
+(:func:`heatpf_jax.cache.compilation_cache`, the same directory and the same opt-outs as the ``heatpf``
+command: ``$HEATPF_CACHE_DIR``, ``HEATPF_NO_CACHE=1``, or ``cache=False``), so the second start of a robot's
+process loads the compiled step instead of compiling it again. JAX's cache settings are restored after the
+construction: the rest of the process is left as it was.
 """
 
 from __future__ import annotations
 
+import os
 from typing import Any, NamedTuple
 
 import jax
@@ -32,6 +39,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax import params as P
+from heatpf_jax.cache import compilation_cache
 from heatpf_jax.ego import pose_deltas
 from heatpf_jax.estimate import Estimate
 from heatpf_jax.pieces import StepInputs
@@ -172,6 +180,9 @@ class Tracker:
         dt: the filter period, seconds (``> 0``).
         num_steps: ``T`` to draw ``run``'s keys for a ``T``-step sequence (and refuse more steps);
             ``None`` (default) for an open-ended loop (``fold_in`` keys).
+        cache: compile inside JAX's persistent compilation cache: ``True`` (default) in the environment's
+            directory (:func:`heatpf_jax.cache.cache_directory`; ``HEATPF_NO_CACHE=1`` turns it off), a path
+            for that directory, ``False`` to leave JAX's cache settings alone.
 
     Raises:
         ValueError: an argument is unusable; the message starts with its name.
@@ -188,6 +199,7 @@ class Tracker:
         plane_height: float,
         dt: float,
         num_steps: int | None = None,
+        cache: bool | str | os.PathLike = True,
     ) -> None:
         if not _is_key(key):
             raise ValueError(f"key: expected a PRNG key (jax.random.key(seed)), got {type(key).__name__} "
@@ -232,15 +244,18 @@ class Tracker:
         self._no_heatmap = jnp.zeros(shape, jnp.float32)
         self._true, self._false = jnp.asarray(True), jnp.asarray(False)
         self._step = _tick_jit
-        self.reset(key)
-
-        # Compile and warm up on the initial state (results dropped): a host heat map, then none. The
-        # second call compiles nothing; it only adds the device-resident zero map to jit's dispatch cache.
-        pose, still = np.eye(4, dtype=np.float32), np.zeros((3,), np.float32)
-        sure = np.float32(1.0)
-        for heat, has in ((np.zeros(shape, np.float32), self._true), (self._no_heatmap, self._false)):
-            jax.block_until_ready(self._step(self._model, self._fold, self._step_keys, self._t_dev, self._state, heat,
-                                             has, pose, still, still, sure, self._constants, self._params))
+        if not isinstance(cache, bool | str | os.PathLike):
+            raise ValueError(f"cache: expected True, False or a directory, got {type(cache).__name__}")
+        directory = None if isinstance(cache, bool) else cache
+        with compilation_cache(enabled=cache is not False, directory=directory):
+            self.reset(key)
+            # Compile and warm up on the initial state (results dropped): a host heat map, then none. The
+            # second call compiles nothing; it only adds the device-resident zero map to jit's dispatch cache.
+            pose, still = np.eye(4, dtype=np.float32), np.zeros((3,), np.float32)
+            sure = np.float32(1.0)
+            for heat, has in ((np.zeros(shape, np.float32), self._true), (self._no_heatmap, self._false)):
+                jax.block_until_ready(self._step(self._model, self._fold, self._step_keys, self._t_dev, self._state,
+                                                 heat, has, pose, still, still, sure, self._constants, self._params))
 
     def reset(self, key: PRNGKeyArray) -> None:
         """Starts again from ``model.init`` with a new key: ``t = 0``, no ``last_info``; nothing recompiles."""

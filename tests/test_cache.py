@@ -134,8 +134,10 @@ def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeyp
     mean, cov, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
     files = list((tmp_path / "exports").iterdir())
     assert len(files) == 1
-    np.testing.assert_array_equal(mean, np.asarray(ref.mean))
-    np.testing.assert_array_equal(cov, np.asarray(ref.cov))
+    # Two compilations of one program (exported and loaded, and jit's): equal up to float32 rounding (a run once
+    # differed in the last bits here while other tests loaded the machine).
+    np.testing.assert_allclose(mean, np.asarray(ref.mean), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(cov, np.asarray(ref.cov), rtol=1e-5, atol=1e-8)
     # Loaded, not exported again: exporting now would fail.
     monkeypatch.setattr(export, "export", lambda *a, **k: (_ for _ in ()).throw(AssertionError("exported again")))
     again, _, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)

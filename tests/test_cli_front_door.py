@@ -270,6 +270,32 @@ def _import_rosbag(inp: Inputs, out: Path, bag: Bag) -> FrontDoor:
     return FrontDoor(["import-rosbag", str(bag.path), *bag.topics, "-o", str(npz)], check)
 
 
+def _simulate(inp: Inputs, out: Path) -> FrontDoor:
+    npz = out / "sim.npz"
+
+    def check(stdout: str) -> list[Path]:
+        got = hp.load_sequence(npz)
+        for name in ("heatmaps", "ground_truth", "cam_to_base", "odometry", "has_heatmap"):
+            np.testing.assert_allclose(getattr(got, name), getattr(inp.seq, name), rtol=0, atol=1e-6, err_msg=name)
+        assert got.images is None and f"wrote {npz}" in stdout
+        return [npz]
+
+    # The inputs' own sequence (simulate_standard(3, 20 steps, shrink 4)), from the command line.
+    return FrontDoor(["simulate", "standard", "--seed", "3", "--steps", "20", "--shrink", "4", "-o", str(npz)], check)
+
+
+def _frame(inp: Inputs, out: Path) -> FrontDoor:
+    png = out / "frame.png"
+
+    def check(stdout: str) -> list[Path]:
+        assert png.read_bytes()[:8] == PNG_MAGIC
+        height, width = inp.rgb.images.shape[1:3]
+        assert f"step 1: RGB frame, {width} x {height} pixels" in stdout and f"wrote {png}" in stdout
+        return [png]
+
+    return FrontDoor(["frame", str(inp.rgb_path), "--step", "1", "-o", str(png)], check)
+
+
 # Subcommand -> its front door. A factory takes the inputs and the output directory (and the bag if it asks
 # for one: import-rosbag).
 FRONT_DOORS: dict[str, Callable[..., FrontDoor]] = {
@@ -281,6 +307,8 @@ FRONT_DOORS: dict[str, Callable[..., FrontDoor]] = {
     "params": _params,
     "colour": _colour,
     "import-rosbag": _import_rosbag,
+    "simulate": _simulate,
+    "frame": _frame,
 }
 
 

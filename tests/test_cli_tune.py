@@ -48,10 +48,11 @@ def tuned(tmp_path_factory):
     hp.save_sequence(seq2_path, simulate_standard(4, num_steps=20, shrink=4))
     argv = ["tune", str(seq_path), str(seq2_path), "--steps", "2", "--filter-seeds", "2", "--burn-in", "10",
             "--lr", "0.2", "-o", str(out), *SMALL_ARGS]
-    stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout):
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         assert main(argv) == 0
-    return {"root": root, "seq": seq, "seq_path": seq_path, "out": out, "stdout": stdout.getvalue()}
+    return {"root": root, "seq": seq, "seq_path": seq_path, "out": out, "stdout": stdout.getvalue(),
+            "stderr": stderr.getvalue()}
 
 
 class _Reached(Exception):
@@ -106,6 +107,17 @@ def test_tune_writes_every_parameter_and_its_history(tuned):
     assert all(n in printed for n in record["tuned"]) and f"wrote {tuned['out']}" in printed
     loaded = load_params_file(tuned["out"])
     assert loaded.method == METHOD and loaded.options == SMALL_OPTIONS and loaded.params == record["params"]
+
+
+def test_tune_names_every_parameter_that_never_moved(tuned):
+    """A static robot gives the odometry noises no gradient: each parameter whose path stayed at its start value
+    gets one warning line, and no other parameter does."""
+    record = json.loads(tuned["out"].read_text())
+    still = sorted(n for n in record["tuned"] if len(set(record["path"][n])) == 1)
+    warned = sorted(line.split("--tune: ")[1].split(" kept")[0] for line in tuned["stderr"].splitlines()
+                    if line.startswith("heatpf: warning: --tune: "))
+    assert "odom_rot_noise" in " ".join(still)  # the static robot's odometry is zero
+    assert warned == still
 
 
 def test_run_with_params_equals_run_with_set_and_set_goes_on_top(tuned, tmp_path):

@@ -17,6 +17,8 @@ from heatpf_jax.colour_likelihood import (
     expected_radius_px,
 )
 from heatpf_jax.colour_space import (
+    balance,
+    channel_means,
     exact_top_bins,
     histogram,
     num_bins,
@@ -43,8 +45,10 @@ def _scene(rng, h=24, w=32, centre=(12, 15), radius=4.0):
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-def _brute_force(image, q, half, params):
+def _brute_force(image, q, half, params, white=None):
     h, w = image.shape[:2]
+    if white is not None:  # von Kries: each channel scaled to the reference light's mean
+        image = np.clip(np.round(image * (np.asarray(white) / image.reshape(-1, 3).mean(axis=0))), 0, 255)
     idx = np.asarray(rgi_bins(image))
     out = np.zeros((h, w))
     for v in range(h):
@@ -59,7 +63,7 @@ def _brute_force(image, q, half, params):
             n_ring = np.bincount(big, minlength=M) - n_in
             p_obj = n_in / n_in.sum()
             p_bck = n_ring / max(n_ring.sum(), 1.0)
-            rho = np.sum(np.sqrt(q) * np.maximum(np.sqrt(p_obj) - np.sqrt(p_bck), 0.0))
+            rho = np.sum(np.sqrt(q) * np.maximum(np.sqrt(p_obj) - np.sqrt(p_bck), 0.0)) / params.reference_score
             out[v, u] = np.clip(max(rho - params.theta, 0.0) / (1.0 - params.theta), 0.0, 1.0)
     return out
 
@@ -129,6 +133,26 @@ def test_likelihood_against_brute_force(rng, top_bins):
     assert np.isfinite(half2).all() and np.any(half2 != half)  # no rounding ties; the windows did move
     got2 = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins))
     np.testing.assert_allclose(got2, _brute_force(image, q, half2, params), atol=2e-5)
+
+
+def test_reference_score_and_light_against_brute_force(rng):
+    """The coefficient divided by the reference's own score before theta; a frame under another light (a gain
+    and a colour cast) brought under the reference's (von Kries, grey world) first."""
+    image = _scene(rng)
+    q = np.asarray(patch_histogram(image, (12, 9, 6, 6)), np.float64)
+    half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)
+    params = ColourParams(theta=0.3, window_scale=0.8, max_half_size=4.0, reference_score=0.55)
+    cast = np.clip(np.round(image * np.array([1.1, 0.95, 0.75])), 0, 255).astype(np.uint8)
+    white = np.asarray(channel_means(image))
+    np.testing.assert_allclose(white, image.reshape(-1, 3).mean(axis=0), rtol=1e-6)
+    want = np.clip(np.round(cast * (white / cast.reshape(-1, 3).mean(axis=0))), 0, 255)
+    np.testing.assert_array_equal(balance(cast, white), want)
+    assert np.abs(want - image).mean() < 3.0  # the cast undone, but for rounding and clipping
+    q32 = jnp.asarray(q, jnp.float32)
+    for frame, light in ((image, None), (cast, white)):
+        got = np.asarray(_likelihood(frame, q32, half, params, top_bins=64, blob_window=False, white=light))
+        np.testing.assert_allclose(got, _brute_force(frame, q, half, params, light), atol=3e-5)
+    assert got.max() == 1.0  # the object scores above the given reference score: clipped
 
 
 def test_blob_half_size_against_brute_force(rng):

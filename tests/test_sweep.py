@@ -341,3 +341,17 @@ def test_cli_sweep_ctrl_c_keeps_finished_rows_and_resumes(tmp_path, small_sequen
     assert main(args) == 0
     assert calls == [2, 2]  # only the four missing rows
     assert sorted(int(r.split(",")[0]) for r in _body(out.read_text())[1:]) == list(range(6))
+
+
+def test_idle_axes_names_only_the_axes_along_which_nothing_changes():
+    """Hand-made 2 x 3 grid: the errors depend on k only, so aging is idle and k is not; a one-value axis is
+    never reported, and a change in one group of rows is enough to keep an axis."""
+    from heatpf_jax.cli import idle_axes
+
+    names = ["k", "aging", "threshold"]
+    values = [[k, a, "0.3"] for k in ("1", "3") for a in ("0.3", "0.45", "0.6")]
+    errors = [[0.1 * int(v[0]), 0.5, 0.01] for v in values]
+    assert idle_axes(names, values, errors) == ["aging"]
+    errors[4] = [0.3, 0.51, 0.01]  # k=3, aging=0.45 differs: aging matters somewhere
+    assert idle_axes(names, values, errors) == []
+    assert idle_axes(["k"], [["1"], ["3"]], [[0.2, 0.4, 0.1], [0.2, 0.4, 0.1 + 1e-12]]) == ["k"]

@@ -175,6 +175,7 @@ GOOD = {"heatmap_shape": (37, 50), "intrinsics": (36.0, 36.0, 24.5, 18.0), "plan
         ("dt", (jax.random.key(0), SMALL_FILTER), {"dt": (0.1, 0.1)}),
         ("num_steps", (jax.random.key(0), SMALL_FILTER), {"num_steps": 0}),
         ("num_steps", (jax.random.key(0), SMALL_FILTER), {"num_steps": 2.5}),
+        ("cache", (jax.random.key(0), SMALL_FILTER), {"cache": 3}),
     ],
 )
 def test_bad_arguments_raise_one_line_errors_before_compiling(name, args, kwargs):
@@ -183,6 +184,30 @@ def test_bad_arguments_raise_one_line_errors_before_compiling(name, args, kwargs
         hp.Tracker(*args, **{**GOOD, **kwargs})
     assert "\n" not in str(err.value)
     assert tracker_module._tick_jit._cache_size() == before
+
+
+def test_compiles_into_the_persistent_cache_and_restores_jax_settings(tmp_path, monkeypatch):
+    """The step compiled at construction lands in the cache directory (``$HEATPF_CACHE_DIR`` by default, or
+    ``cache=DIR``), where a second process loads it; JAX's cache settings are as they were afterwards;
+    ``cache=False`` writes nothing."""
+    names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs")
+    before = {name: getattr(jax.config, name) for name in names}
+    monkeypatch.delenv("HEATPF_NO_CACHE", raising=False)
+    monkeypatch.setenv("HEATPF_CACHE_DIR", str(tmp_path / "env"))
+    kwargs = {"intrinsics": (10.0, 10.0, 8.0, 6.0), "plane_height": 0.075, "dt": 0.1}
+
+    def written(directory):
+        return [p for p in directory.rglob("*") if p.is_file() and not p.name.startswith(".heatpf-probe")]
+
+    # Shapes no other test compiles: each construction must compile.
+    hp.Tracker(jax.random.key(0), KALMAN.model, KALMAN.params, cache=False, heatmap_shape=(13, 17), **kwargs)
+    assert not (tmp_path / "env").exists() or not written(tmp_path / "env")
+    hp.Tracker(jax.random.key(0), KALMAN.model, KALMAN.params, heatmap_shape=(14, 17), **kwargs)
+    assert written(tmp_path / "env"), "nothing was written to $HEATPF_CACHE_DIR"
+    hp.Tracker(jax.random.key(0), KALMAN.model, KALMAN.params, cache=tmp_path / "own", heatmap_shape=(15, 17),
+               **kwargs)
+    assert written(tmp_path / "own"), "nothing was written to cache=DIR"
+    assert {name: getattr(jax.config, name) for name in names} == before
 
 
 def test_bad_update_inputs(small_sequence):
