@@ -231,6 +231,7 @@ def _cmd_run(args) -> int:
             raise RuntimeError('--plot needs matplotlib: pip install "heatpf-jax[plot]"')
     elif args.plot_step is not None:
         raise ValueError("--plot-step: only with --plot")
+    bag_out = _bag_output(args, [args.input, out, modes_out, tracks_out, plot_out])
     seq = load_sequence(args.input)
     if seq.ground_truth is not None:
         check_burn_in(args.burn_in, seq.num_steps)
@@ -251,7 +252,41 @@ def _cmd_run(args) -> int:
               f"{int(np.sum(tracks.valid))} rows over {seq.num_steps} steps)")
     if plot_out is not None:
         _plot_run(plot_out, seq, mean, cov, args, options, settings)
+    if bag_out is not None:
+        _bag_run(bag_out, seq, args, options, settings)
     return 0
+
+
+def _bag_output(args, others) -> Path | None:
+    """``run --bag``: the bag directory checked before any work (:func:`heatpf_jax.rosbag_export.check_bag_output`)."""
+    if args.bag is None:
+        if args.bag_frame is not None or args.bag_start is not None:
+            raise ValueError(f"{'--bag-frame' if args.bag_frame is not None else '--bag-start'}: only with --bag")
+        return None
+    from heatpf_jax.rosbag_export import check_bag_output
+
+    if args.bag_frame is not None and not args.bag_frame.strip("/ "):
+        raise ValueError(f"--bag-frame: a frame name, got {args.bag_frame!r}")
+    if args.bag_start is not None and args.bag_start < 0:
+        raise ValueError(f"--bag-start: nanoseconds >= 0, got {args.bag_start}")
+    return check_bag_output(args.bag, inputs=others, replace=args.force)
+
+
+def _bag_run(path: Path, seq, args, options, settings) -> None:
+    """``run --bag``: the run as a ROS 2 bag (:mod:`heatpf_jax.rosbag_export`), the same run with its states."""
+    import jax
+
+    from heatpf_jax.rosbag_export import describe_bag, record_run
+
+    model, params = method_with_settings(args.method, options, settings)
+    summary = record_run(path, jax.random.key(args.seed), seq, params, model,
+                         frame_id=(args.bag_frame or "base_footprint").strip("/ "), start_ns=args.bag_start)
+    print(describe_bag(path, summary))
+    if args.bag_start is None and seq.stamps is not None:
+        print(f"{path}: stamped with the sequence's clock (its stamps, from {int(seq.stamps[0])} ns)")
+    elif args.bag_start is None:
+        print(f"{path}: stamps from 0 s every {float(seq.dt):g} s (the sequence has no stamps; --bag-start sets "
+              "step 0's stamp)")
 
 
 def _plot_run(path: Path, seq, mean, cov, args, options, settings) -> None:
@@ -605,7 +640,7 @@ def idle_axes(names: list[str], values: list[list[str]], errors: list[list[float
 def _option_choices() -> dict[str, str]:
     from heatpf_jax.ego import EGO_MOTIONS
     from heatpf_jax.observation import KNN_METHODS
-    from heatpf_jax.presets import MEMORIES, MODE_FINDERS, OBSERVATIONS, RESAMPLERS, SPAWNS
+    from heatpf_jax.presets import MEMORIES, MODE_FINDERS, OBSERVATIONS, RESAMPLERS, SOURCES, SPAWNS
 
     return {
         "resampler": "one of " + ", ".join(sorted(RESAMPLERS)),
@@ -616,6 +651,7 @@ def _option_choices() -> dict[str, str]:
         "knn": "one of " + ", ".join(KNN_METHODS),
         "ego": "one of " + ", ".join(EGO_MOTIONS),
         "memory": "one of " + ", ".join(MEMORIES),
+        "source": "one of auto, " + ", ".join(SOURCES),
     }
 
 
@@ -772,6 +808,13 @@ def _build_parser() -> argparse.ArgumentParser:
                        "last step with a heat map)")
     p_run.add_argument("--force", action="store_true", help="replace existing --output, --modes, --tracks and "
                        "--plot files")
+    p_run.add_argument("--bag", metavar="DIR", help="also write the run as a ROS 2 bag (rosbag2, MCAP) for Foxglove or "
+                       "ros2 bag play: estimate, particles, measurements, modes, tracks, camera tf under /heatpf "
+                       "(needs rosbags: pip install 'heatpf-jax[ros]'; an existing bag is replaced only with --force)")
+    p_run.add_argument("--bag-frame", metavar="FRAME", help="the bag's frame_id, the robot's base frame (default "
+                       "base_footprint)")
+    p_run.add_argument("--bag-start", type=int, metavar="NS", help="the stamp of step 0 in the bag, nanoseconds, "
+                       "the others dt apart (default: the sequence's own stamps, which import-rosbag keeps, else 0)")
     p_run.add_argument("--seed", type=int, default=0, help="PRNG seed (default 0)")
     _add_burn_in(p_run)
     _add_set(p_run)

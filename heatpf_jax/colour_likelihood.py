@@ -176,7 +176,8 @@ def window_coefficient(
         table: a summed-area table of bin counts (:class:`~heatpf_jax.colour_space.BinTable` ``.table``, or
             any float table of per-pixel bin masses over the same ``K`` bins).
         q_top: the reference's values on those bins.
-        inner, outer: per pixel, the object window's and the ring's outer half-sizes (:func:`window_half_sizes`).
+        inner: per pixel, the object window's half-size (:func:`window_half_sizes`).
+        outer: per pixel, the ring's outer half-size (:func:`window_half_sizes`).
 
     Returns:
         ``float32 [H, W]``, ``sum_u sqrt(q_u) max(0, sqrt(p_obj(u)) - sqrt(p_bck(u)))``.

@@ -147,7 +147,7 @@ def evaluate_sequences(
     objects = truth[:, :, None, :] if targets is None else np.stack([np.asarray(t, np.float64) for t in targets])
     if objects.shape[:2] != truth.shape[:2] or objects.shape[-1] != 2:
         raise ValueError(f"targets: expected [T, B, 2] per sequence, got {objects.shape[1:]}")
-    batch = batch._replace(ground_truth=None)
+    batch = batch._replace(ground_truth=None, stamps=None)
     keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(np.arange(len(sequences)))
     results = []
     for variant in variants:

@@ -141,7 +141,8 @@ def move_with_odometry(
     Args:
         xy: positions. v: velocities. odometry: ``(dx, dy, dtheta)``.
         noise: standard normal draws, one row per particle (translation x, y; rotation).
-        trans_noise, rot_noise: fractions of the distance moved and the angle turned.
+        trans_noise: fraction of the distance moved.
+        rot_noise: fraction of the angle turned.
     """
     odometry = jnp.asarray(odometry, xy.dtype)
     dist = safe_sqrt(odometry[0] ** 2 + odometry[1] ** 2)

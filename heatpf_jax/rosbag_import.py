@@ -44,12 +44,13 @@ from pathlib import Path
 
 import numpy as np
 
+from heatpf_jax import ros_messages as rm
 from heatpf_jax.files import check_output
+from heatpf_jax.ros_messages import CLIP_TOLERANCE
 from heatpf_jax.sequence import Sequence, SequenceError, save_sequence, validate_sequence
 
 __all__ = ["CLIP_TOLERANCE", "add_parser", "import_rosbag"]
 
-CLIP_TOLERANCE = 1e-3  # 32FC1 activations this far outside [0, 1] are clipped; further out is an error
 # A heat map stamped this fraction of a period after a tick still belongs to that tick (float rounding).
 _TICK_SLACK = 1e-6
 
@@ -65,17 +66,8 @@ TF_TOPICS = ("/tf", "/tf_static")
 # --- Small rigid-body helpers (NumPy, float64) -------------------------------------------------------------------
 
 
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``[N, 3, 3]`` from unit quaternions ``[N, 4]`` in ROS order ``(x, y, z, w)``."""
-    x, y, z, w = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
+_quat_to_matrix = rm.quaternion_to_matrix
+_pose_matrix = rm.pose_matrices
 
 
 def _slerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -89,14 +81,6 @@ def _slerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
     b = np.where(small, w, np.sin(w * theta) / sin)
     q = a[:, None] * q0 + b[:, None] * q1
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def _pose_matrix(trans: np.ndarray, quat: np.ndarray) -> np.ndarray:
-    out = np.zeros((trans.shape[0], 4, 4))
-    out[:, :3, :3] = _quat_to_matrix(quat)
-    out[:, :3, 3] = trans
-    out[:, 3, 3] = 1.0
-    return out
 
 
 def _invert(pose: np.ndarray) -> np.ndarray:
@@ -135,58 +119,17 @@ class _Track:
 # --- Reading the bag ---------------------------------------------------------------------------------------------
 
 
-def _stamp_ns(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
-def _frame(name: str) -> str:
-    return str(name).lstrip("/")
-
-
-def _field(msg, name: str):
-    """A message field by its ROS 2 name, or its ROS 1 spelling (``K`` for ``k``)."""
-    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
-
-
-def _quat(msg) -> np.ndarray:
-    return np.array([msg.x, msg.y, msg.z, msg.w], np.float64)
-
-
-def _vec(msg) -> np.ndarray:
-    return np.array([msg.x, msg.y, msg.z], np.float64)
+_stamp_ns = rm.stamp_ns
+_frame = rm.frame_name
+_quat = rm.quaternion
+_vec = rm.vector3
 
 
 def _decode_image(msg, topic: str) -> np.ndarray:
-    enc = str(msg.encoding)
-    h, w, step = int(msg.height), int(msg.width), int(msg.step)
-    data = np.asarray(msg.data, np.uint8)
-    stamp = _stamp_ns(msg.header)
-    if enc in ("mono8", "8UC1"):
-        itemsize, dtype = 1, np.dtype(np.uint8)
-    elif enc == "32FC1":
-        itemsize, dtype = 4, np.dtype(">f4" if msg.is_bigendian else "<f4")
-    else:
-        raise SequenceError(
-            f"--heatmap-topic: {topic} has encoding {enc!r} (stamp {stamp} ns); supported: mono8 (or 8UC1), 32FC1"
-        )
-    if h < 1 or w < 1 or step < w * itemsize or data.size < h * step:
-        raise SequenceError(
-            f"--heatmap-topic: {topic} has a malformed image at stamp {stamp} ns "
-            f"({h} x {w}, step {step}, {data.size} bytes)"
-        )
-    rows = data[: h * step].reshape(h, step)[:, : w * itemsize]
-    if itemsize == 1:
-        return rows.astype(np.float32) / np.float32(255.0)
-    act = np.ascontiguousarray(rows).view(dtype).astype(np.float32)
-    if not np.all(np.isfinite(act)):
-        raise SequenceError(f"--heatmap-topic: {topic} has a non-finite activation at stamp {stamp} ns")
-    lo, hi = float(act.min()), float(act.max())
-    if lo < -CLIP_TOLERANCE or hi > 1.0 + CLIP_TOLERANCE:
-        raise SequenceError(
-            f"--heatmap-topic: {topic} has activations in [{lo:.6g}, {hi:.6g}] at stamp {stamp} ns; "
-            "32FC1 heat maps must lie in [0, 1] (apply the sigmoid to a logit map before recording)"
-        )
-    return np.clip(act, 0.0, 1.0)
+    try:
+        return rm.heatmap_from_image(msg, f"--heatmap-topic: {topic}")
+    except ValueError as err:
+        raise SequenceError(str(err)) from None
 
 
 @dataclasses.dataclass
@@ -247,8 +190,7 @@ def _read_bag(path: Path, topics: dict[str, tuple[str, tuple[str, ...]]], ground
                     bag.image_frames.append(_frame(msg.header.frame_id))
                     bag.images.append(_decode_image(msg, topic))
                 elif conn.msgtype == CAMERA_INFO:
-                    k = np.asarray(_field(msg, "k"), np.float64).reshape(9)
-                    bag.camera_infos.append((_stamp_ns(msg.header), int(msg.width), int(msg.height), k))
+                    bag.camera_infos.append((_stamp_ns(msg.header), *rm.camera_matrix(msg)))
                 elif conn.msgtype == ODOMETRY:
                     bag.odom.append((_stamp_ns(msg.header), _frame(msg.header.frame_id), _frame(msg.child_frame_id),
                                      _vec(msg.pose.pose.position), _quat(msg.pose.pose.orientation)))
@@ -355,14 +297,11 @@ def _intrinsics(bag: _Bag, shape: tuple[int, int], topic: str) -> np.ndarray:
                 f"{other[1]} x {other[2]}; first K {k[[0, 4, 2, 5]].tolist()}, {width} x {height}); a sequence "
                 "has one set of intrinsics"
             )
-    fx, fy, cx, cy = k[0], k[4], k[2], k[5]
-    if fx <= 0 or fy <= 0:
+    if k[0] <= 0 or k[4] <= 0:
         raise SequenceError(f"--camera-info-topic: {topic} has no calibration (K = {k.tolist()})")
     if width <= 0 or height <= 0:
         raise SequenceError(f"--camera-info-topic: {topic} has an image size of {width} x {height}")
-    h, w = shape
-    sx, sy = w / width, h / height
-    return np.array([fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5], np.float64)
+    return rm.scale_intrinsics(k, width, height, shape)
 
 
 def _one_frame(frames, what: str) -> str:
@@ -372,21 +311,8 @@ def _one_frame(frames, what: str) -> str:
     return names[0]
 
 
-def _planar(pose: np.ndarray) -> np.ndarray:
-    """``(x, y, yaw)`` ``[N, 3]`` of poses ``[N, 4, 4]`` projected onto the ground plane."""
-    return np.stack([pose[:, 0, 3], pose[:, 1, 3], np.arctan2(pose[:, 1, 0], pose[:, 0, 0])], axis=-1)
-
-
-def _odometry(planar: np.ndarray) -> np.ndarray:
-    """``(dx, dy, dtheta)`` ``[T, 3]`` between consecutive planar poses, in the base frame of the earlier one."""
-    odom = np.zeros_like(planar)
-    delta = planar[1:, :2] - planar[:-1, :2]
-    c, s = np.cos(planar[:-1, 2]), np.sin(planar[:-1, 2])
-    odom[1:, 0] = c * delta[:, 0] + s * delta[:, 1]
-    odom[1:, 1] = -s * delta[:, 0] + c * delta[:, 1]
-    dth = planar[1:, 2] - planar[:-1, 2]
-    odom[1:, 2] = np.arctan2(np.sin(dth), np.cos(dth))
-    return odom
+_planar = rm.planar_poses
+_odometry = rm.odometry_deltas
 
 
 def import_rosbag(
@@ -510,6 +436,7 @@ def import_rosbag(
             ball_radius=np.asarray(ball_radius, np.float64),
             dt=np.asarray(1.0 / rate, np.float64),
             ground_truth=ground_truth,
+            stamps=t0 + np.round(np.arange(num_steps) * (1e9 / rate)).astype(np.int64),  # the bag's clock per tick
         )
     )
 

@@ -13,11 +13,13 @@
 | robot_pose   | float64 [T, 3], optional | base (x, y, theta) in a world frame, from self-localisation |
 | pose_confidence | float64 [T], optional | its confidence in [0, 1] (1 if absent); needs robot_pose |
 | images       | uint8 [T, H, W, 3], optional | RGB frames at the heat maps' size (``heatpf colour``) |
+| stamps       | int64 [T], optional    | the time of step t, ns, non-decreasing (an imported bag's clock) |
 
 :func:`load_sequence` checks every key and raises :class:`SequenceError` with one
 line naming the file, the key (where one is at fault) and the problem, also for a
 file it cannot read (empty, damaged, a directory, a .npy array, text, object
-arrays); :func:`save_sequence` validates first and writes atomically (a
+arrays); ``stamps`` (kept by ``heatpf import-rosbag``) stamps the messages of ``heatpf run --bag``, so
+that they play beside the robot's own bag; :func:`save_sequence` validates first and writes atomically (a
 temporary file renamed into place), so nothing is half-written.
 """
 
@@ -67,6 +69,7 @@ class Sequence(NamedTuple):
     robot_pose: np.ndarray | None = None
     pose_confidence: np.ndarray | None = None
     images: np.ndarray | None = None
+    stamps: np.ndarray | None = None
 
     @property
     def num_steps(self) -> int:
@@ -74,7 +77,7 @@ class Sequence(NamedTuple):
 
     def head(self, num_steps: int) -> Sequence:
         """The first ``num_steps`` steps (per-step arrays cut, constants kept)."""
-        per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth", *OPTIONAL_INPUTS)
+        per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth", "stamps", *OPTIONAL_INPUTS)
         return self._replace(
             **{k: getattr(self, k)[:num_steps] for k in per_step if getattr(self, k) is not None}
         )
@@ -93,9 +96,10 @@ _SPEC = {
     "robot_pose": ("f", "float64", ("T", 3)),
     "pose_confidence": ("f", "float64", ("T",)),
     "images": ("u", "uint8", ("T", "H", "W", 3)),
+    "stamps": ("i", "int64", ("T",)),
 }
 OPTIONAL_INPUTS = ("robot_pose", "pose_confidence", "images")  # optional keys a method may read
-_REQUIRED = tuple(k for k in _SPEC if k not in ("ground_truth", *OPTIONAL_INPUTS))
+_REQUIRED = tuple(k for k in _SPEC if k not in ("ground_truth", "stamps", *OPTIONAL_INPUTS))
 
 
 def _check_array(key: str, value, dims: dict[str, int]) -> np.ndarray:
@@ -170,6 +174,10 @@ def validate_sequence(seq: Sequence) -> Sequence:
         if conf.size and (conf.min() < 0.0 or conf.max() > 1.0):
             bad = int(np.flatnonzero((conf < 0.0) | (conf > 1.0))[0])
             raise SequenceError(f"pose_confidence: must lie in [0, 1], got {conf[bad]} at step {bad}")
+    if out["stamps"] is not None and np.any(np.diff(out["stamps"]) < 0):
+        bad = int(np.flatnonzero(np.diff(out["stamps"]) < 0)[0]) + 1
+        raise SequenceError(f"stamps: must not decrease, got {int(out['stamps'][bad])} ns at step {bad} after "
+                            f"{int(out['stamps'][bad - 1])} ns")
     if dims["H"] < 1 or dims["W"] < 1:
         raise SequenceError(f"heatmaps: empty heat maps of shape {out['heatmaps'].shape[1:]}")
     heat = out["heatmaps"]
@@ -209,6 +217,7 @@ def validate_sequence(seq: Sequence) -> Sequence:
         robot_pose=_float64(out["robot_pose"]),
         pose_confidence=_float64(out["pose_confidence"]),
         images=out["images"],
+        stamps=None if out["stamps"] is None else out["stamps"].astype(np.int64, copy=False),
     )
 
 

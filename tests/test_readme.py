@@ -1,9 +1,12 @@
-"""README.md's Python code blocks run as tests, so a renamed or changed public name fails here, not for a user.
+"""The Python code blocks of README.md and of the documentation (docs/**/*.md) run as tests, so a renamed or
+changed public name fails here, not for a user.
 
 Every ```` ```python ```` fenced block of README.md is one test, ``test_readme_block[bN-LM-<first line>]``
-(N: the block's index from 0, M: the README line of its opening fence), executed as written with
-``exec``; a traceback names ``README.md:M block N`` and the line within the block (line 1: the line after
-the fence). Each block runs on its own:
+(N: the block's index from 0, M: the README line of its opening fence), and every one of a documentation
+page one ``test_docs_block[docs/PAGE.md-bN-LM-<first line>]``, executed as written with ``exec``; a
+traceback names ``FILE:M block N`` and the line within the block (line 1: the line after the fence). The
+``heatpf`` command lines of their ```` ```bash ```` blocks are parsed by the command's own parser
+(``test_cli_lines_parse``), so a renamed option fails here too. Each Python block runs on its own:
 
 * in a fresh temporary working directory that holds ``recording.npz``, 20 steps of the standard scenario on
   a 50 x 37 heat map (the ``small_sequence`` fixture of ``tests/conftest.py``, ``hp.save_sequence``);
@@ -28,7 +31,8 @@ one per line, each ``<!-- test: ... -->``; GitHub does not render them.
   substitute tiny sizes for heavy ones (particles, steps, sequences), never to repair a block. OLD must
   occur in the block, so a directive gone stale with an edit of the block fails.
 * ``<!-- test: skip (reason) -->``: the block cannot run here (e.g. it needs rclpy); its test is
-  reported as skipped with the reason, and ``test_skipped_blocks`` fails if more than one block is skipped.
+  reported as skipped with the reason, and ``test_skipped_blocks`` fails if more than one block of a file
+  is skipped.
 
 Any other ``<!-- test`` comment, or one that is not directly above a Python block, fails
 ``test_directives``; ``test_readme_has_python_blocks`` fails if README.md has no Python block.
@@ -48,7 +52,9 @@ import pytest
 import heatpf_jax as hp
 from tests.conftest import SMALL_OPTIONS
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+DOCS = sorted((ROOT / "docs").rglob("*.md"))
 DIRECTIVE = re.compile(r"<!--\s*test:(?P<body>.*?)-->\s*$")
 SKIP = re.compile(r"skip\s*\((?P<reason>.+)\)\s*$", re.DOTALL)
 ROBOT_TICKS = 3
@@ -56,15 +62,17 @@ ROBOT_TICKS = 3
 
 class Block(NamedTuple):
     index: int
-    line: int  # 1-based README line of the opening fence
+    line: int  # 1-based line of the opening fence in its file
     source: str  # the block as written
     replacements: tuple[tuple[str, str], ...]
     skip: str | None  # the reason, or None
+    file: str = "README.md"  # relative to the repository root
 
     @property
     def id(self) -> str:
         first = next((s.strip() for s in self.source.splitlines() if s.strip()), "")
-        return f"b{self.index}-L{self.line}-{first[:40]}"
+        prefix = "" if self.file == "README.md" else f"{self.file}-"
+        return f"{prefix}b{self.index}-L{self.line}-{first[:40]}"
 
 
 def _parse_directive(body: str) -> tuple[tuple[tuple[str, str], ...], str | None]:
@@ -80,8 +88,9 @@ def _parse_directive(body: str) -> tuple[tuple[tuple[str, str], ...], str | None
     return tuple(zip(pairs[0::2], pairs[1::2], strict=True)), None
 
 
-def parse_readme(text: str) -> tuple[list[Block], list[str]]:
-    """The Python blocks of ``text`` with their directives, and the problems found (never raises)."""
+def parse_readme(text: str, file: str = "README.md") -> tuple[list[Block], list[str]]:
+    """The Python blocks of ``text`` (the Markdown file ``file``) with their directives, and the problems found
+    (never raises)."""
     lines = text.splitlines()
     blocks: list[Block] = []
     problems: list[str] = []
@@ -95,7 +104,7 @@ def parse_readme(text: str) -> tuple[list[Block], list[str]]:
         info = fence[3:].strip()
         end = next((j for j in range(i + 1, len(lines)) if lines[j].strip() == "```"), None)
         if end is None:
-            problems.append(f"README.md:{i + 1}: unclosed code fence")
+            problems.append(f"{file}:{i + 1}: unclosed code fence")
             break
         if info.split(" ")[0] == "python":
             replacements: list[tuple[str, str]] = []
@@ -108,22 +117,27 @@ def parse_readme(text: str) -> tuple[list[Block], list[str]]:
                     try:
                         pairs, reason = _parse_directive(match.group("body"))
                     except ValueError as error:
-                        problems.append(f"README.md:{j + 1}: {error}")
+                        problems.append(f"{file}:{j + 1}: {error}")
                     else:
                         replacements[:0] = pairs  # directives apply top to bottom
                         skip = reason or skip
                 j -= 1
             source = "\n".join(lines[i + 1:end]) + "\n"
-            blocks.append(Block(len(blocks), i + 1, source, tuple(replacements), skip))
+            blocks.append(Block(len(blocks), i + 1, source, tuple(replacements), skip, file))
         i = end + 1
     for n, line in enumerate(lines):
         if re.match(r"\s*<!--\s*test", line) and n not in used:
-            problems.append(f"README.md:{n + 1}: a test directive not directly above a ```python block "
+            problems.append(f"{file}:{n + 1}: a test directive not directly above a ```python block "
                             f"(or not one line '<!-- test: ... -->'): {line.strip()!r}")
     return blocks, problems
 
 
 BLOCKS, PROBLEMS = parse_readme(README.read_text(encoding="utf-8"))
+DOC_BLOCKS: list[Block] = []
+for _page in DOCS:
+    _blocks, _problems = parse_readme(_page.read_text(encoding="utf-8"), _page.relative_to(ROOT).as_posix())
+    DOC_BLOCKS += _blocks
+    PROBLEMS += _problems
 
 
 def runnable_source(block: Block) -> str:
@@ -131,7 +145,7 @@ def runnable_source(block: Block) -> str:
     source = block.source
     for old, new in block.replacements:
         if old not in source:
-            pytest.fail(f"README.md:{block.line}: replace directive's {old!r} does not occur in the block")
+            pytest.fail(f"{block.file}:{block.line}: replace directive's {old!r} does not occur in the block")
         source = source.replace(old, new)
     return source
 
@@ -217,23 +231,92 @@ def test_directives():
     assert not PROBLEMS, "\n".join(PROBLEMS)
 
 
+def test_docs_are_found():
+    """The documentation pages are where this test looks for them (a moved docs/ would test nothing)."""
+    assert DOCS and any(b.file.startswith("docs/") for b in DOC_BLOCKS), "no docs/**/*.md with a ```python block"
+
+
 def test_skipped_blocks():
-    skipped = [f"README.md:{b.line} ({b.skip})" for b in BLOCKS if b.skip is not None]
-    assert len(skipped) <= 1, "more than one README block is skipped: " + "; ".join(skipped)
+    every = BLOCKS + DOC_BLOCKS
+    for file in sorted({b.file for b in every}):
+        skipped = [f"{b.file}:{b.line} ({b.skip})" for b in every if b.file == file and b.skip is not None]
+        assert len(skipped) <= 1, f"more than one block of {file} is skipped: " + "; ".join(skipped)
 
 
-@pytest.mark.parametrize("block", BLOCKS, ids=[b.id for b in BLOCKS])
-def test_readme_block(block: Block, tmp_path, monkeypatch, small_sequence):
+def run_block(block: Block, tmp_path, monkeypatch, small_sequence) -> None:
+    """Runs one block as the module docstring says (skips it if it is marked skip)."""
     if block.skip is not None:
-        pytest.skip(f"README.md:{block.line} is marked skip: {block.skip}")
+        pytest.skip(f"{block.file}:{block.line} is marked skip: {block.skip}")
     source = runnable_source(block)
     monkeypatch.chdir(tmp_path)
     hp.save_sequence("recording.npz", small_sequence)
     robot = Robot(small_sequence, _heatmap_shape(source, small_sequence.heatmaps.shape[1:]))
     namespace = {"__name__": f"readme_block_{block.index}", "robot": robot, "SMALL_OPTIONS": SMALL_OPTIONS}
     # A traceback shows the (substituted) block's lines: linecache serves them under this name.
-    filename = f"README.md:{block.line} block {block.index}"
+    filename = f"{block.file}:{block.line} block {block.index}"
     linecache.cache[filename] = (len(source), None, source.splitlines(keepends=True), filename)
     code = compile(source, filename, "exec")
     exec(code, namespace)
     check_namespace(namespace, robot, source)
+
+
+@pytest.mark.parametrize("block", BLOCKS, ids=[b.id for b in BLOCKS])
+def test_readme_block(block: Block, tmp_path, monkeypatch, small_sequence):
+    run_block(block, tmp_path, monkeypatch, small_sequence)
+
+
+@pytest.mark.parametrize("block", DOC_BLOCKS, ids=[b.id for b in DOC_BLOCKS])
+def test_docs_block(block: Block, tmp_path, monkeypatch, small_sequence):
+    run_block(block, tmp_path, monkeypatch, small_sequence)
+
+
+def cli_lines(text: str, file: str) -> list[tuple[str, str]]:
+    """``(where, line)`` for every ``heatpf ...`` command of the ```` ```bash ```` blocks of ``text``: comments
+    dropped, backslash continuations joined, commands after ``&&`` split off. Lines written as a synopsis
+    (``[optional]``, ``a|b``, ``...``) are left out: they are not meant to run as written."""
+    found = []
+    lines = text.splitlines()
+    i = 0
+    while i < len(lines):
+        if lines[i].strip() != "```bash":
+            i += 1
+            continue
+        j = i + 1
+        command = ""
+        while j < len(lines) and lines[j].strip() != "```":
+            part = lines[j].split(" #", 1)[0].rstrip()
+            command += part[:-1] + " " if part.endswith("\\") else part
+            if not part.endswith("\\"):
+                for piece in command.split("&&"):
+                    piece = piece.strip()
+                    if piece.startswith("heatpf ") and not any(c in piece for c in "[|") and "..." not in piece:
+                        found.append((f"{file}:{j + 1}", piece))
+                command = ""
+            j += 1
+        i = j + 1
+    return found
+
+
+CLI_LINES = [found for page in [README, *DOCS]
+             for found in cli_lines(page.read_text(encoding="utf-8"), page.relative_to(ROOT).as_posix())]
+
+
+def test_cli_lines_parse():
+    """Every runnable ``heatpf`` line of the README and the documentation is accepted by the command's parser
+    (options, choices, required arguments); it is parsed, not run."""
+    import contextlib
+    import io
+
+    from heatpf_jax.cli import _build_parser
+
+    assert CLI_LINES, "no heatpf command lines found"
+    failed = []
+    for where, line in CLI_LINES:
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                _build_parser().parse_args(shlex.split(line)[1:])
+        except SystemExit as exit_:
+            if exit_.code:
+                failed.append(f"{where}: {line}\n    {err.getvalue().strip()}")
+    assert not failed, "\n".join(failed)

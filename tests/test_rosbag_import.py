@@ -235,6 +235,8 @@ def _check_round_trip(out, sim, spec):
     np.testing.assert_allclose(out.cam_to_base, sim.cam_to_base, rtol=0, atol=1e-6)
     np.testing.assert_allclose(out.odometry[1:], sim.odometry[1:], rtol=0, atol=1e-6)
     np.testing.assert_array_equal(out.odometry[0], 0.0)
+    # The bag's clock per tick: the first heat map's stamp (step 0's heat map is never dropped here), dt apart.
+    np.testing.assert_array_equal(out.stamps, T0_NS + np.arange(NUM_STEPS, dtype=np.int64) * DT_NS)
     assert float(out.dt) == pytest.approx(0.1) and float(out.ball_radius) == 0.07
     if spec.truth is None:
         assert out.ground_truth is None

@@ -235,3 +235,27 @@ def test_save_refuses_bad_sequence_and_keeps_existing_file(tmp_path, seq):
         hp.save_sequence(path, seq._replace(heatmaps=seq.heatmaps + 2.0))
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.npz"]  # no temporary file left behind
+
+
+def test_stamps_round_trip_and_are_checked(tmp_path, small_sequence):
+    """The optional clock: kept through save and load (int64 ns), cut by ``head``, refused when it decreases or is
+    not integral, and never an input of the run (the same estimates with or without it)."""
+    import jax
+
+    stamps = 1_700_000_000_000_000_000 + np.arange(small_sequence.num_steps, dtype=np.int64) * 100_000_000
+    path = tmp_path / "timed.npz"
+    hp.save_sequence(path, small_sequence._replace(stamps=stamps))
+    got = hp.load_sequence(path)
+    assert got.stamps.dtype == np.int64
+    np.testing.assert_array_equal(got.stamps, stamps)
+    np.testing.assert_array_equal(got.head(3).stamps, stamps[:3])
+    back = stamps.copy()
+    back[4] = back[3] - 1
+    with pytest.raises(hp.SequenceError, match=r"^stamps: must not decrease, got \d+ ns at step 4 after"):
+        hp.validate_sequence(small_sequence._replace(stamps=back))
+    with pytest.raises(hp.SequenceError, match="^stamps: expected dtype int64, got float64"):
+        hp.validate_sequence(small_sequence._replace(stamps=stamps.astype(np.float64)))
+    model, params = hp.build("kalman")
+    plain = hp.run(jax.random.key(0), small_sequence, params, model).info.mean
+    timed = hp.run(jax.random.key(0), got, params, model).info.mean
+    np.testing.assert_array_equal(np.asarray(timed), np.asarray(plain))

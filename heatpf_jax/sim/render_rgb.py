@@ -137,7 +137,9 @@ def render_rgb_frame(
     """One noise-free frame ``float64 [H, W, 3]`` before lighting (see the module docstring).
 
     Args:
-        intrinsics, cam_to_base, shape: the camera.
+        intrinsics: the camera's ``(fx, fy, cx, cy)``.
+        cam_to_base: the camera's pose in the base frame.
+        shape: the frame's ``(H, W)``.
         robot_pose: ``(x, y, theta)`` of the base in the world.
         balls: ``(centre_xy_base [2], rotation ball->world [3, 3])`` of every ball drawn.
         ball_radius: metres.
