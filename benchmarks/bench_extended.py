@@ -12,6 +12,8 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.ClusterResampling`;
 * ``heatmap``: the product's defaults (velocity, range-aware template over k = 10);
 * ``heatmap (centroid source)``: the same with every pixel at its blob's centroid (``--set source=centroids``);
+* ``heatmap (lofted source)``: the same with a blob larger than a ground ball there placed under the ball by its
+  size (``--set source=lofted``, :class:`heatpf_jax.sources_lofted.LoftedSource`);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
@@ -54,6 +56,7 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
         out[name] = tuple(hp.build(name, options))
     # heatmap with every pixel at its blob's centroid (--set source=centroids).
     out["heatmap (centroid source)"] = tuple(hp.build("heatmap", options._replace(source="centroids")))
+    out["heatmap (lofted source)"] = tuple(hp.build("heatmap", options._replace(source="lofted")))
     with_memory = options._replace(memory="tracks")
     for name in ("paper", "heatmap", "extended"):
         out[f"{name} + memory"] = tuple(hp.build(name, with_memory))

@@ -9,6 +9,10 @@ each method's mean error to the best other method's (worst world first), which i
     python benchmarks/worlds.py --seeds 100:103 --kinds family   # development seeds, family only
     python benchmarks/worlds.py --kinds replay --render disc     # replays, saturated-disc detector blobs
     python benchmarks/worlds.py --methods heatmap,heatmap:pixels,kalman  # METHOD:SOURCE sets FilterOptions.source
+    python benchmarks/worlds.py --kinds replay --heights kept --split-air  # ground steps vs steps in the air
+
+``--split-air`` adds a line per world: each method's mean error on the steps with the ball on the ground, on those
+with it in the air (its bottom above 0.1 m) and on the ground steps of the first 0.5 s after a landing.
 
 Replays need the real tracks: the first run fetches kloppy's source distribution from PyPI (about 40 MB,
 cached in ~/.cache/heatpf_jax/tracks; see heatpf_jax.sim.tracks).
@@ -46,10 +50,11 @@ def _disc_render(rng, centres, radius, intrinsics, cam_to_base, shape):
 
 
 def family_worlds(seeds, steps, members):
-    from heatpf_jax.sim.family import FAMILY, simulate_family
+    from heatpf_jax.sim.family import FAMILY, simulate_family_with_info
 
     for member in members or FAMILY:
-        yield f"family/{member}", [simulate_family(member, s, num_steps=steps) for s in seeds]
+        runs = [simulate_family_with_info(member, s, num_steps=steps) for s in seeds]
+        yield f"family/{member}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
 
 
 def replay_worlds(count, steps, render, heights_kinds=("flat", "kept")):
@@ -59,9 +64,21 @@ def replay_worlds(count, steps, render, heights_kinds=("flat", "kept")):
     draw = _disc_render if render == "disc" else None
     for robot in ("static", "walking"):
         for heights in heights_kinds:
-            seqs = [replay_world(p, i, robot=robot, heights=heights, num_steps=steps, render=draw)[0]
+            runs = [replay_world(p, i, robot=robot, heights=heights, num_steps=steps, render=draw)
                     for i, p in enumerate(pieces)]
-            yield f"replay/{robot}/{heights}", seqs
+            yield f"replay/{robot}/{heights}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
+
+
+def air_masks(in_air: np.ndarray, burn_in: int, settle: int = 5) -> dict[str, np.ndarray]:
+    """Step masks ``[S, T]`` after the burn-in: ``ground`` (the ball on the ground), ``air`` (in the air) and
+    ``landed`` (ground steps within ``settle`` steps after an in-air step: the re-acquisition after a landing)."""
+    in_air = np.asarray(in_air, bool)
+    after = np.zeros_like(in_air)
+    for k in range(1, settle + 1):
+        after[:, k:] |= in_air[:, :-k]
+    keep = np.zeros_like(in_air)
+    keep[:, burn_in:] = True
+    return {"ground": keep & ~in_air, "air": keep & in_air, "landed": keep & ~in_air & after}
 
 
 def evaluate(name, seqs, methods) -> ScenarioResult:
@@ -87,6 +104,8 @@ def main(argv=None) -> int:
     parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
     parser.add_argument("--heights", default="flat,kept", help="replays' ball heights: flat, kept or both (default)")
     parser.add_argument("--methods", default=",".join(METHODS))
+    parser.add_argument("--split-air", action="store_true",
+                        help="also each method's mean error on ground steps / in-air steps / 0.5 s after landings")
     args = parser.parse_args(argv)
     seeds = list(parse_seeds(args.seeds, 3))
     methods = args.methods.split(",")
@@ -100,13 +119,22 @@ def main(argv=None) -> int:
     header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
     print(header)
     ratios = {}
-    for name, seqs in worlds:
+    for name, seqs, in_air in worlds:
         t0 = time.perf_counter()
         result = evaluate(name, seqs, methods)
         stats = {m.variant.name: m.stats(result.burn_in) for m in result.methods}
         cells = [f"{s['mean']:.3f} ({s['radial']:.3f}/{s['lateral']:.3f})" for s in stats.values()]
         print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",
               flush=True)
+        if args.split_air:
+            masks = air_masks(in_air, result.burn_in)
+            counts = "/".join(str(int(v.sum())) for v in masks.values())
+            cells = []
+            for r in result.methods:
+                means = [r.errors[v].mean() if v.any() else float("nan") for v in masks.values()]
+                cells.append("/".join(f"{e:.3f}" for e in means))
+            print(f"{'  ground/air/landed':<28}" + "".join(f"{c:>24}" for c in cells) + f"   [steps {counts}]",
+                  flush=True)
         for m in methods:
             best_other = min(stats[o]["mean"] for o in methods if o != m)
             ratios.setdefault(m, []).append((stats[m]["mean"] / best_other, name))

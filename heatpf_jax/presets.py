@@ -44,6 +44,7 @@ from heatpf_jax.observation_range import FootprintTemplate
 from heatpf_jax.resampling import RESAMPLERS, ESSParams, ESSResampling
 from heatpf_jax.resampling_clustered import ClusterResampling
 from heatpf_jax.sources import CentroidSource, ClusterCentreSource, PixelSource, SourceParams
+from heatpf_jax.sources_lofted import LoftedSource
 
 __all__ = [
     "BITBOTS_BOX",
@@ -69,7 +70,7 @@ __all__ = [
 ]
 
 SPAWNS = ("uniform", "gaussian")
-SOURCES = ("pixels", "centroids")
+SOURCES = ("pixels", "centroids", "lofted")
 MEMORIES = ("none", "tracks")
 MODE_FINDERS = {
     "none": lambda k: NoModes(),
@@ -119,9 +120,12 @@ class FilterOptions(NamedTuple):
         max_tracks: the memory's capacity.
         source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"pixels"`` for
             ``paper``, ``heatmap`` and ``extended``), ``"pixels"`` (every pixel at or above the threshold, where
-            it lies: the paper's source) or ``"centroids"`` (every such pixel at its blob's centroid in the
+            it lies: the paper's source), ``"centroids"`` (every such pixel at its blob's centroid in the
             image, :class:`~heatpf_jax.sources.CentroidSource`; with ``heatmap`` its blobs that spill out of a
-            ground ball's window by more than 1.5 are dropped). ``conventional``, ``kalman`` and
+            ground ball's window by more than 1.5 are dropped) or ``"lofted"`` (every such pixel on the ground,
+            except those of a blob larger than a ground ball there, which go to the ground point under the ball
+            their blob's size places along the ray: :class:`~heatpf_jax.sources_lofted.LoftedSource`, for balls in
+            the air). ``conventional``, ``kalman`` and
             ``bitbots2018`` keep their own.
     """
 
@@ -204,12 +208,14 @@ def _with_hints(model: Filter) -> Filter:
     return model._replace(injectors=(*model.injectors, MemoryHints(), RedetectionSeeds()))
 
 
-def _pixels(options: FilterOptions, default: str = "pixels") -> PixelSource | CentroidSource:
-    """The source of every above-threshold pixel: where it lies or at its blob's centroid (``options.source``,
-    the method's ``default`` when ``"auto"``)."""
+def _pixels(options: FilterOptions, default: str = "pixels") -> PixelSource | CentroidSource | LoftedSource:
+    """The source of every above-threshold pixel: where it lies, at its blob's centroid, or under its ball when
+    its blob is a ball in the air (``options.source``, the method's ``default`` when ``"auto"``)."""
     which = default if options.source == AUTO else options.source
     if which == "centroids":
         return CentroidSource(max_measurements=options.max_measurements, downscale=options.downscale)
+    if which == "lofted":
+        return LoftedSource(max_measurements=options.max_measurements, downscale=options.downscale)
     return PixelSource(max_measurements=options.max_measurements, downscale=options.downscale)
 
 
