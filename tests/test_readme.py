@@ -320,3 +320,37 @@ def test_cli_lines_parse():
             if exit_.code:
                 failed.append(f"{where}: {line}\n    {err.getvalue().strip()}")
     assert not failed, "\n".join(failed)
+
+
+def _generated_parts(text: str) -> dict[str, tuple[list[str], list[str]]]:
+    """Per ``## `heatpf NAME``` section of the command-line page: its usage words and its option table rows."""
+    from tests.data.cli_docs import _HEADING
+
+    parts, name, lines = {}, None, text.splitlines()
+    for i, line in enumerate(lines):
+        match = _HEADING.match(line)
+        if match:
+            name = match.group(1)
+            block = lines[i + 1:]
+            start = block.index("```text")
+            usage = block[start + 1 : block.index("```", start + 1)]
+            table = []
+            for r in block[block.index("| option | meaning |"):]:
+                if not r.startswith("|"):
+                    break
+                table.append(r)
+            parts[name] = (" ".join(usage).split(), table)
+    return parts
+
+
+def test_cli_page_matches_the_parser():
+    """``docs/cli.md`` shows every subcommand's options as the parser has them (forms, metavars, help texts) and
+    its usage; regenerate the page's usage blocks and tables with ``python -m tests.data.cli_docs``. Usage lines
+    are compared word by word (their wrapping is argparse's)."""
+    from tests.data import cli_docs
+
+    page = cli_docs.PAGE.read_text(encoding="utf-8")
+    assert cli_docs.missing_sections(page) == [], "add a section for these subcommands to docs/cli.md"
+    have, want = _generated_parts(page), _generated_parts(cli_docs.render(page))
+    stale = sorted(name for name in want if have.get(name) != want[name])
+    assert not stale, f"docs/cli.md is out of date for {stale}: run python -m tests.data.cli_docs"
