@@ -34,7 +34,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-__all__ = ["BlobCentres", "ball_radius_px", "blob_centres", "summed_area"]
+__all__ = ["BlobCentres", "ball_radius_px", "blob_centres", "box_sums", "summed_area"]
 
 
 class BlobCentres(NamedTuple):
@@ -63,8 +63,9 @@ def summed_area(table: Float[ArrayLike, "h w"]) -> Float[Array, "h+1 w+1"]:
     return jnp.pad(s, ((1, 0), (1, 0)))
 
 
-def _box(s: Float[Array, "h1 w1"], u0, u1, v0, v1) -> Float[Array, "..."]:
-    """Sums of the inclusive integer boxes ``[u0, u1] x [v0, v1]`` (already clipped to the image)."""
+def box_sums(s: Float[Array, "h1 w1"], u0, u1, v0, v1) -> Float[Array, "..."]:
+    """Sums of the inclusive integer boxes ``[u0, u1] x [v0, v1]`` (already clipped to the image) from a
+    :func:`summed_area` table."""
     return s[v1 + 1, u1 + 1] - s[v0, u1 + 1] - s[v1 + 1, u0] + s[v0, u0]
 
 
@@ -136,15 +137,15 @@ def blob_centres(
     uv = jnp.asarray(start, jnp.float32)
     for _ in range(int(iterations)):
         box, _ = window(uv)
-        m = _box(s_mass, *box)
+        m = box_sums(s_mass, *box)
         has = m > 0.0
         safe = jnp.where(has, m, 1.0)
-        moved = jnp.stack([_box(s_u, *box) / safe, _box(s_v, *box) / safe], axis=-1)
+        moved = jnp.stack([box_sums(s_u, *box) / safe, box_sums(s_v, *box) / safe], axis=-1)
         uv = jnp.where(has[:, None], moved, uv)
     box, radius = window(uv)
     u0, u1, v0, v1 = box
     area = ((u1 - u0 + 1) * (v1 - v0 + 1)).astype(jnp.float32)
-    count = _box(s_count, *box)
-    count_around = _box(s_count, *window(uv, 2.0)[0])
+    count = box_sums(s_count, *box)
+    count_around = box_sums(s_count, *window(uv, 2.0)[0])
     spill = jnp.where(count > 0.0, count_around / jnp.maximum(count, 1.0), 1.0)
-    return BlobCentres(uv=uv, mass=_box(s_mass, *box), fill=count / area, spill=spill, radius_px=radius)
+    return BlobCentres(uv=uv, mass=box_sums(s_mass, *box), fill=count / area, spill=spill, radius_px=radius)

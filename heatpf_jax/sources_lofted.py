@@ -49,7 +49,7 @@ from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float
 
 from heatpf_jax.camera import ground_jacobian, project_pixel, project_points
-from heatpf_jax.image_centroids import ball_radius_px, summed_area
+from heatpf_jax.image_centroids import ball_radius_px, box_sums, summed_area
 from heatpf_jax.measurements import Measurements, downscale_heatmap
 from heatpf_jax.params import Param, interval, positive, unit_interval
 from heatpf_jax.pieces import StepInputs
@@ -103,10 +103,6 @@ class BlobSizes(NamedTuple):
     std_px: Float[Array, " m"]
     peak: Float[Array, " m"]
     ground_radius_px: Float[Array, " m"]
-
-
-def _box(s: Float[Array, "h1 w1"], u0, u1, v0, v1) -> Float[Array, "..."]:
-    return s[v1 + 1, u1 + 1] - s[v0, u1 + 1] - s[v1 + 1, u0] + s[v0, u0]
 
 
 def blob_sizes(
@@ -165,11 +161,11 @@ def blob_sizes(
         u1 = jnp.clip(jnp.round(uv[:, 0] + half), 0, w - 1).astype(jnp.int32)
         v0 = jnp.clip(jnp.round(uv[:, 1] - half), 0, h - 1).astype(jnp.int32)
         v1 = jnp.clip(jnp.round(uv[:, 1] + half), 0, h - 1).astype(jnp.int32)
-        m = _box(s_mass, u0, u1, v0, v1)
+        m = box_sums(s_mass, u0, u1, v0, v1)
         has = m > 0.0
         safe = jnp.where(has, m, 1.0)
-        centre = jnp.where(has[:, None], jnp.stack([_box(s_u, u0, u1, v0, v1) / safe,
-                                                   _box(s_v, u0, u1, v0, v1) / safe], axis=-1), uv)
+        centre = jnp.where(has[:, None], jnp.stack([box_sums(s_u, u0, u1, v0, v1) / safe,
+                                                   box_sums(s_v, u0, u1, v0, v1) / safe], axis=-1), uv)
         iu = jnp.clip(jnp.round(centre[:, 0]), 0, w - 1).astype(jnp.int32)
         iv = jnp.clip(jnp.round(centre[:, 1]), 0, h - 1).astype(jnp.int32)
         peak = local_peak[iv, iu]
