@@ -28,6 +28,7 @@ __all__ = [
     "Estimator",
     "Injector",
     "MeasurementSource",
+    "ModelWrapper",
     "MotionModel",
     "ObservationModel",
     "ResamplingStrategy",
@@ -142,3 +143,28 @@ class Injector(_Piece, Protocol):
     name: str
 
     def inject(self, key: PRNGKeyArray, context: Any, params: Any) -> Any: ...
+
+
+class ModelWrapper:
+    """A model around another (``self.model``) that changes only its ``step``: ``init``, ``default_params``,
+    ``properties``, ``validate`` and ``requires`` (the optional inputs it reads, e.g. ``robot_pose``) are the wrapped
+    model's. A subclass is a frozen dataclass (hashable: models are static arguments of ``jax.jit``) with a
+    ``model`` field and its own ``step``."""
+
+    model: Any
+
+    def init(self, key: PRNGKeyArray, params):
+        return self.model.init(key, params)
+
+    def default_params(self):
+        return self.model.default_params()
+
+    def properties(self):
+        return self.model.properties()
+
+    def validate(self) -> None:
+        self.model.validate()
+
+    @property
+    def requires(self) -> tuple[str, ...]:
+        return tuple(getattr(self.model, "requires", ()))

@@ -32,6 +32,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -40,6 +41,7 @@ import numpy as np
 
 from heatpf_jax import ros_messages as rm
 from heatpf_jax.files import check_writable_dir, same_file
+from heatpf_jax.pieces import ModelWrapper
 from heatpf_jax.rollout import prepare_run, run_core
 from heatpf_jax.sequence import Sequence
 
@@ -146,30 +148,15 @@ def _snapshot(state) -> Snapshot:
     )
 
 
-class _Recording(NamedTuple):
+@dataclass(frozen=True)
+class _Recording(ModelWrapper):
     """A model whose step also returns a :class:`Snapshot` of its new state (hashable if the model is)."""
 
     model: Any
 
-    def init(self, key, params):
-        return self.model.init(key, params)
-
     def step(self, key, state, inputs, params):
         state, info = self.model.step(key, state, inputs, params)
         return state, (info, _snapshot(state))
-
-    def default_params(self):
-        return self.model.default_params()
-
-    def properties(self):
-        return self.model.properties()
-
-    def validate(self) -> None:
-        self.model.validate()
-
-    @property
-    def requires(self) -> tuple[str, ...]:
-        return tuple(getattr(self.model, "requires", ()))
 
 
 _trace_jit = jax.jit(run_core, static_argnames="model")

@@ -36,6 +36,7 @@ from jaxtyping import Array, Float, PRNGKeyArray
 
 from heatpf_jax import params as P
 from heatpf_jax.motion_score import ScoreMotion
+from heatpf_jax.pieces import ModelWrapper
 from heatpf_jax.resampling_gradients import DetachResampling, SoftResampling, StopGradientResampling
 from heatpf_jax.rollout import prepare_run, run_core, validate_params
 from heatpf_jax.sequence import Sequence
@@ -59,7 +60,7 @@ MOTION_GRADIENTS = ("score", "pathwise")
 
 
 @dataclass(frozen=True)
-class Checkpointed:
+class Checkpointed(ModelWrapper):
     """A model whose ``step`` is rematerialised in the backward pass (``jax.checkpoint``).
 
     ``run`` and the losses see the wrapped model's ``init``/``step`` unchanged in value; reverse-mode
@@ -70,18 +71,6 @@ class Checkpointed:
     """
 
     model: Any
-
-    def default_params(self):
-        return self.model.default_params()
-
-    def properties(self):
-        return self.model.properties()
-
-    def validate(self) -> None:
-        self.model.validate()
-
-    def init(self, key: PRNGKeyArray, params):
-        return self.model.init(key, params)
 
     def step(self, key: PRNGKeyArray, state, inputs, params):
         return jax.checkpoint(self.model.step)(key, state, inputs, params)
