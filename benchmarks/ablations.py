@@ -29,8 +29,8 @@ from heatpf_jax import params as P
 from heatpf_jax.evaluate import _stack
 from heatpf_jax.sim import SCENARIOS, simulate
 
-MOTIONS = {"rw": hp.RandomWalk, "cv": hp.ConstantVelocity, "mi": hp.MassInertia}
-OBSERVATIONS = {"id": None, "g": hp.GaussianKernel, "range": hp.FootprintTemplate}
+MOTIONS = {"rw": hp.motion.RandomWalk, "cv": hp.motion.ConstantVelocity, "mi": hp.motion.MassInertia}
+OBSERVATIONS = {"id": None, "g": hp.observation.GaussianKernel, "range": hp.observation.FootprintTemplate}
 
 
 def build(spec: str):
@@ -45,7 +45,7 @@ def build(spec: str):
         if obs is not None:
             model = model._replace(observation=obs(k_max=10))
         if settings.pop("meas", None):
-            model = model._replace(injectors=(*model.injectors, hp.MeasurementExplorers()))
+            model = model._replace(injectors=(*model.injectors, hp.injection.MeasurementExplorers()))
         params = model.default_params()
     return model, P.set_by_name(params, model.properties(), {k: float(v) for k, v in settings.items()})
 

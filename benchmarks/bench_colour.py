@@ -2,7 +2,7 @@
 steps, against the heat-map filter's step on the same frame's colour map.
 
 The frame is a rendered `standard` frame (`simulate(..., rgb=True)`); default bins (12 x 12 x 4), the
-window from the camera geometry (:func:`heatpf_jax.colour_likelihood.expected_radius_px`, computed once
+window from the camera geometry (:func:`heatpf_jax.colour.likelihood.expected_radius_px`, computed once
 per camera pose and included in ``colour map + window``), the reference's 64 heaviest bins. Every call is
 timed with ``block_until_ready`` after compilation and warm-up; the table gives the median and the
 interquartile range over ``--repeats`` calls (interleaved, so that a noisy machine slows all alike).
@@ -28,14 +28,12 @@ from _timing import first_call, positive_int, stats_ms
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.baselines.image_trackers import (
-    ColourParticleTracker,
-    KalmanMeanShiftTracker,
-    MeanShiftTracker,
-    Window,
-)
-from heatpf_jax.colour_likelihood import ColourParams, colour_likelihood, expected_radius_px
-from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
+from heatpf_jax.baselines.colour_particles import ColourParticleTracker
+from heatpf_jax.baselines.image_window import Window
+from heatpf_jax.baselines.kalman_mean_shift import KalmanMeanShiftTracker
+from heatpf_jax.baselines.mean_shift import MeanShiftTracker
+from heatpf_jax.colour.likelihood import ColourParams, colour_likelihood, expected_radius_px
+from heatpf_jax.colour.space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 

@@ -9,11 +9,11 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 
 * ``paper``: the 2019 filter (static position, eq. 1, systematic resampling, explorers);
 * ``paper + velocity``: the same with the constant-velocity motion model;
-* ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.ClusterResampling`;
+* ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.resampling.ClusterResampling`;
 * ``heatmap``: the product's defaults (velocity, range-aware template over k = 10);
 * ``heatmap (centroid source)``: the same with every pixel at its blob's centroid (``--set source=centroids``);
 * ``heatmap (lofted source)``: the same with a blob larger than a ground ball there placed under the ball by its
-  size (``--set source=lofted``, :class:`heatpf_jax.sources_lofted.LoftedSource`);
+  size (``--set source=lofted``, :class:`heatpf_jax.sources.lofted.LoftedSource`);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
@@ -45,8 +45,8 @@ from heatpf_jax import params as P
 
 def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterParams]]:
     paper, paper_params = hp.build("paper", options)
-    velocity = paper._replace(motion=hp.ConstantVelocity())
-    clustered = velocity._replace(resampling=hp.ClusterResampling())
+    velocity = paper._replace(motion=hp.motion.ConstantVelocity())
+    clustered = velocity._replace(resampling=hp.resampling.ClusterResampling())
     out = {
         "paper": (paper, paper_params),
         "paper + velocity": (velocity, velocity.default_params()),
@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> None:
     inputs = hp.StepInputs(
         heatmap=jnp.asarray(heatmap),
         has_heatmap=jnp.asarray(True),
-        cam_to_base=jnp.asarray(hp.camera_pose(**CAMERA), jnp.float32),
+        cam_to_base=jnp.asarray(hp.camera.camera_pose(**CAMERA), jnp.float32),
         odometry=jnp.zeros((3,), jnp.float32),
         intrinsics=jnp.asarray(INTRINSICS, jnp.float32),
         plane_height=jnp.asarray(PLANE_HEIGHT, jnp.float32),

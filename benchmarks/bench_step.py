@@ -2,7 +2,7 @@
 
 What it measures, for each ``(particles P, measurements M)`` size (default 500x1024 and 1000x4096):
 
-* ``particle_weights``: the exact blocked kernel (``heatpf_jax.particle_weights(..., method="blocked")``,
+* ``particle_weights``: the exact blocked kernel (``heatpf_jax.observation.particle_weights(..., method="blocked")``,
   what ``FilterOptions.knn="auto"`` picks at these sizes) and the plain dense ``top_k``, under ``jax.jit``,
   at ``--k`` (default 10);
 * ``cKDTree build+query`` / ``cKDTree total``: a NumPy + ``scipy.spatial.cKDTree`` implementation of the
@@ -176,7 +176,7 @@ def time_calls(call: Callable[[int], object], repeats: int) -> np.ndarray:
 def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) -> dict:
     heatmap = make_heatmap()
     threshold = pick_threshold(heatmap, max_measurements, setting(DEFAULT_MODEL, DEFAULT_PARAMS, "min_weight"))
-    cam = jnp.asarray(hp.camera_pose(**CAMERA), jnp.float32)
+    cam = jnp.asarray(hp.camera.camera_pose(**CAMERA), jnp.float32)
     intr = jnp.asarray(INTRINSICS, jnp.float32)
 
     def inputs(has_heatmap: bool) -> hp.StepInputs:
@@ -194,7 +194,7 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
     step = jax.jit(hp.Filter.step, static_argnums=0)  # step(model, key, state, inputs, params); model static
     rows = []
     rng = np.random.default_rng(0)
-    pose_np = np.asarray(hp.camera_pose(**CAMERA))
+    pose_np = np.asarray(hp.camera.camera_pose(**CAMERA))
     n_exp = round(setting(DEFAULT_MODEL, DEFAULT_PARAMS, "explorer_fraction") * num_particles)
     state_for_weights = None
     compiled: set[hp.Filter] = set()
@@ -235,22 +235,22 @@ def bench_size(num_particles: int, max_measurements: int, k: int, repeats: int) 
         state_for_weights = state
 
     # The observation model on the step's inputs: the state's particles and this heat map's buffer.
-    project = jax.jit(hp.project_heatmap, static_argnames="max_measurements")
+    project = jax.jit(hp.measurements.project_heatmap, static_argnames="max_measurements")
 
     def default(name: str):
         return setting(DEFAULT_MODEL, DEFAULT_PARAMS, name)
 
     buffer = project(heatmap, intr, cam, threshold=jnp.float32(threshold), plane_height=PLANE_HEIGHT,
                      max_measurements=max_measurements, max_distance=default("max_distance"))
-    buffer = hp.update_buffer(hp.empty_measurements(max_measurements), buffer, True, default("aging"),
-                              default("min_weight"))
+    buffer = hp.measurements.update_buffer(hp.measurements.empty_measurements(max_measurements), buffer, True,
+                                           default("aging"), default("min_weight"))
     particles = state_for_weights.particles.xy
     jax.block_until_ready((buffer, particles))
-    weights_fn = jax.jit(lambda p, m: hp.particle_weights(p, m, k, method="blocked"))
+    weights_fn = jax.jit(lambda p, m: hp.observation.particle_weights(p, m, k, method="blocked"))
     t_compile_pw = first_call(lambda: weights_fn(particles, buffer))
     t_pw = time_calls(lambda i: weights_fn(particles, buffer).block_until_ready(), repeats)
     ours = np.asarray(weights_fn(particles, buffer), np.float64)
-    dense_fn = jax.jit(lambda p, m: hp.particle_weights(p, m, k, method="dense"))
+    dense_fn = jax.jit(lambda p, m: hp.observation.particle_weights(p, m, k, method="dense"))
     t_compile_dense = first_call(lambda: dense_fn(particles, buffer))
     t_dense = time_calls(lambda i: dense_fn(particles, buffer).block_until_ready(), repeats)
     dense_rel = np.abs(np.asarray(dense_fn(particles, buffer), np.float64) - ours) / np.abs(ours)

@@ -1,11 +1,12 @@
-"""Benchmark of eq. (1)'s particle weights: blocked exact k-nearest (heatpf_jax.knn) vs top_k, cKDTree, NumPy.
+"""Benchmark of eq. (1)'s particle weights: blocked exact k-nearest (heatpf_jax.observation.knn)
+against top_k, cKDTree and NumPy.
 
 For each ``(particles P, measurements M)`` size (default 500x1024, 1000x4096, 2000x8192; k = 10) and
 each measurement layout, on the same inputs:
 
-* ``blocked``: ``heatpf_jax.knn.k_nearest_blocked`` followed by particle_weights' reduction
+* ``blocked``: ``heatpf_jax.observation.knn.k_nearest_blocked`` followed by particle_weights' reduction
   (``sum w / max(d, 0.01)``), under ``jax.jit``;
-* ``top_k``: ``heatpf_jax.particle_weights(..., method="dense")`` under ``jax.jit`` (dense P x M matrix +
+* ``top_k``: ``heatpf_jax.observation.particle_weights(..., method="dense")`` under ``jax.jit`` (dense P x M matrix +
   ``lax.top_k``; the default method, ``"auto"``, would pick the blocked kernel);
 * ``cKDTree``: NumPy + ``scipy.spatial.cKDTree`` on the valid positions, build + ``query(k, workers=-1)``
   + the weight sum, in float64;
@@ -16,7 +17,7 @@ Layouts (all buffers full: the threshold lets at least M pixels pass, so the str
 ``--layout raster`` runs the first two, ``--layout random`` the last two, ``--layout both`` (default) all four:
 
 * ``blob`` / ``2blobs`` (raster): a 200x150 heat map with one or two Gaussian blobs (plus activation
-  noise) projected with ``heatpf_jax.project_heatmap`` (camera ``camera_pose(height=0.6, pitch=0.5)``,
+  noise) projected with ``heatpf_jax.measurements.project_heatmap`` (camera ``camera_pose(height=0.6, pitch=0.5)``,
   intrinsics (143, 143, 99.5, 74.5), plane 0.075 m): raster order, as the filter produces them;
   particles: a Gaussian cloud (0.3 m) around the blob centre(s) on the ground plus 5 % uniform explorers
   in a 7 x 8 m box (x in [0, 7], y in [-4, 4]);
@@ -39,7 +40,7 @@ cKDTree`` is the ratio of the medians (< 1: blocked is faster). ``max rel`` is t
 difference between the blocked and the top_k weights, ``rel cKD`` between the blocked and the float64
 cKDTree weights; ``same sets`` counts particles whose selected
 (squared distance, weight, selected) rows from ``k_nearest_blocked`` and the dense
-``heatpf_jax.k_nearest(..., method="dense")`` are identical.
+``heatpf_jax.observation.k_nearest(..., method="dense")`` are identical.
 
 Run it from the repository root::
 
@@ -71,7 +72,7 @@ from _timing import parse_sizes as parse_size_list  # noqa: E402
 from scipy.spatial import cKDTree
 
 import heatpf_jax as hp
-from heatpf_jax.knn import k_nearest_blocked, plan_blocks
+from heatpf_jax.observation.knn import k_nearest_blocked, plan_blocks
 
 HEATMAP_SHAPE = (150, 200)  # rows, columns
 INTRINSICS = (143.0, 143.0, 99.5, 74.5)
@@ -137,12 +138,12 @@ def blob_buffer(blobs, m: int) -> tuple[hp.Measurements, np.ndarray]:
     heat = make_heatmap(blobs)
     ranked = np.sort(heat.ravel())[::-1]
     threshold = float(ranked[min(ranked.size - 1, int(1.1 * m))])
-    cam = jnp.asarray(hp.camera_pose(**CAMERA), jnp.float32)
+    cam = jnp.asarray(hp.camera.camera_pose(**CAMERA), jnp.float32)
     intr = jnp.asarray(INTRINSICS, jnp.float32)
-    project = jax.jit(hp.project_heatmap, static_argnames="max_measurements")
+    project = jax.jit(hp.measurements.project_heatmap, static_argnames="max_measurements")
     meas = project(jnp.asarray(heat), intr, cam, threshold=jnp.float32(threshold),
                    plane_height=jnp.float32(PLANE_HEIGHT), max_measurements=m)
-    centres = [np.asarray(hp.project_pixel(jnp.asarray((cu, cv), jnp.float32), intr, cam, PLANE_HEIGHT)[0])
+    centres = [np.asarray(hp.camera.project_pixel(jnp.asarray((cu, cv), jnp.float32), intr, cam, PLANE_HEIGHT)[0])
                for cu, cv, _, _ in blobs]
     return jax.block_until_ready(meas), np.asarray(centres, np.float64)
 
@@ -254,7 +255,7 @@ def prepare_case(n: int, m: int, k: int, layout: str) -> dict:
     particles = uniform_particles(n, meas) if layout == "random" else make_particles(n, centres)
 
     ours = jax.jit(partial(blocked_weights, k=k))
-    plain = jax.jit(partial(hp.particle_weights, k=k, method="dense"))
+    plain = jax.jit(partial(hp.observation.particle_weights, k=k, method="dense"))
     compile_ours = first_call(lambda: ours(particles, meas))
     compile_plain = first_call(lambda: plain(particles, meas))
 
@@ -270,7 +271,10 @@ def prepare_case(n: int, m: int, k: int, layout: str) -> dict:
     tree = ckdtree_weights(p64, xy64, w64, valid, k)
     brute = brute_weights(p32, xy32, w64, valid, k)
     sel_ours = [np.asarray(a) for a in jax.jit(partial(k_nearest_blocked, k=k, k_max=k))(particles, meas)]
-    sel_plain = [np.asarray(a) for a in jax.jit(partial(hp.k_nearest, k=k, k_max=k, method="dense"))(particles, meas)]
+    sel_plain = [
+        np.asarray(a)
+        for a in jax.jit(partial(hp.observation.k_nearest, k=k, k_max=k, method="dense"))(particles, meas)
+    ]
     same = np.all([np.all(a == b, axis=1) for a, b in zip(sel_ours, sel_plain, strict=True)], axis=0)
 
     return {

@@ -4,7 +4,7 @@ filter on the detector-like heat maps of the same frames.
 A user takes the reference as a box around the ball in one frame: here boxes 10 %, 25 % and 40 % larger than
 the ball, centred on it and off-centre by a quarter of the box (down and right), in the first frame where
 the ball is visible. The colour maps are what ``heatpf colour IN.npz --box x,y,w,h --frame N`` writes
-(:func:`heatpf_jax.cli_rgb.colour_sequence`); ``heatmap`` and ``extended`` run on them with their default
+(:func:`heatpf_jax.cli.colour.colour_sequence`); ``heatmap`` and ``extended`` run on them with their default
 parameters (threshold 0.3) and on the sequence's own ``heatmaps``; mean error after step 10, and the ratio.
 
 Two renderers draw the frames of one simulated world (its camera, its ball path):
@@ -40,7 +40,7 @@ import jax
 import numpy as np
 
 import heatpf_jax as hp
-from heatpf_jax.settings import parse_seeds
+from heatpf_jax.cli.settings import parse_seeds
 from heatpf_jax.sim.render import project_centre
 from heatpf_jax.sim.scenarios import simulate_with_info
 
@@ -218,8 +218,8 @@ def ball_box(seq, info, t: int, scale: float, offset: float) -> tuple[int, int, 
 def _plain(seq, t0: int, box):
     """The previous release's ``heatpf colour``: the whole box's histogram, smoothed, on the coefficient's own
     scale (``theta`` 0.2, no background weighting, no white balance)."""
-    from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-    from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
+    from heatpf_jax.colour.likelihood import ColourParams, colour_heatmaps
+    from heatpf_jax.colour.space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 
     q = smooth_chromaticity(smooth_intensity(patch_histogram(seq.images[t0], box)))
     heat = colour_heatmaps(seq.images, q, seq.intrinsics, seq.cam_to_base, seq.ball_radius, ColourParams(),
@@ -270,11 +270,11 @@ def _command(args: list[str], cache: Path, pythonpath: str | None = None) -> tup
 
 
 def speed(repeats: int, before: str | None) -> int:
-    from heatpf_jax.cli_rgb import colour_sequence
-    from heatpf_jax.colour_likelihood import colour_likelihood, expected_radius_px
-    from heatpf_jax.colour_reference import SCALED_PARAMS
-    from heatpf_jax.colour_space import channel_means, exact_top_bins
-    from heatpf_jax.sequence import save_sequence
+    from heatpf_jax.cli.colour import colour_sequence
+    from heatpf_jax.colour.likelihood import colour_likelihood, expected_radius_px
+    from heatpf_jax.colour.reference import SCALED_PARAMS
+    from heatpf_jax.colour.space import channel_means, exact_top_bins
+    from heatpf_jax.io.sequence import save_sequence
 
     seq, info = simulate_with_info("standard", 0, num_steps=200, rgb=True)
     box = ball_box(seq, info, 0, 1.25, 0.0)
@@ -319,8 +319,8 @@ def speed(repeats: int, before: str | None) -> int:
 
 
 def main(argv=None) -> int:
-    from heatpf_jax.cli_rgb import colour_sequence
-    from heatpf_jax.colour_reference import SCALED_PARAMS
+    from heatpf_jax.cli.colour import colour_sequence
+    from heatpf_jax.colour.reference import SCALED_PARAMS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0:3")

@@ -27,9 +27,9 @@ from table1_rgb import THRESHOLD, reference_box, to_image
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
-from heatpf_jax.settings import parse_seeds
+from heatpf_jax.cli.settings import parse_seeds
+from heatpf_jax.colour.likelihood import ColourParams, colour_heatmaps
+from heatpf_jax.colour.space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
+from heatpf_jax.cli.settings import parse_seeds
 from heatpf_jax.evaluate import DEFAULT_BURN_IN, Variant, evaluate_sequences
 from heatpf_jax.presets import FilterOptions
-from heatpf_jax.settings import parse_seeds
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 EGOS = ("none", "odometry", "pose", "pose_full", "pose_unweighted", "pose_full_unweighted")

@@ -40,10 +40,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from heatpf_jax.cli.settings import parse_seeds
+from heatpf_jax.io.sequence import Sequence, load_sequence, save_sequence
 from heatpf_jax.presets import FilterOptions, build
 from heatpf_jax.rollout import run
-from heatpf_jax.sequence import Sequence, load_sequence, save_sequence
-from heatpf_jax.settings import parse_seeds
 
 NUM_STEPS = 300
 MEMBER = "kicked_hidden"
@@ -111,7 +111,7 @@ def hidings(info, num_steps: int, window: int):
 
 def ball_track_xy(tracks) -> np.ndarray:
     """``[T, 2]`` the ball track's position (NaN where there is none): ``TrackTable.ball``, or, for a table without
-    it, the valid track observed on most steps (where the hints of :class:`~heatpf_jax.MemoryHints` go)."""
+    it, the valid track observed on most steps (where the hints of :class:`~heatpf_jax.injection.MemoryHints` go)."""
     valid = np.asarray(tracks.valid)
     mean = np.asarray(tracks.mean)[..., :2]
     if getattr(tracks, "ball", None) is not None:

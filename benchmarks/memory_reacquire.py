@@ -19,9 +19,9 @@ import time
 import jax
 import numpy as np
 
+from heatpf_jax.cli.settings import parse_seeds
 from heatpf_jax.evaluate import Variant, evaluate_sequences
 from heatpf_jax.presets import FilterOptions
-from heatpf_jax.settings import parse_seeds
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 NUM_STEPS = 200

@@ -34,11 +34,14 @@ import numpy as np
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.baselines.image_trackers import ColourParticleTracker, KalmanMeanShiftTracker, MeanShiftTracker, track
+from heatpf_jax.baselines.colour_particles import ColourParticleTracker
+from heatpf_jax.baselines.image_sequences import track
+from heatpf_jax.baselines.kalman_mean_shift import KalmanMeanShiftTracker
+from heatpf_jax.baselines.mean_shift import MeanShiftTracker
 from heatpf_jax.camera import project_pixel
-from heatpf_jax.colour_likelihood import ColourParams, colour_heatmaps
-from heatpf_jax.colour_space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
-from heatpf_jax.settings import parse_seeds
+from heatpf_jax.cli.settings import parse_seeds
+from heatpf_jax.colour.likelihood import ColourParams, colour_heatmaps
+from heatpf_jax.colour.space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sim.render import project_centre
 from heatpf_jax.sim.scenarios import simulate_with_info
 

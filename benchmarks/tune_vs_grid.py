@@ -23,7 +23,7 @@ import numpy as np
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.cli import main as heatpf
+from heatpf_jax.cli.parser import main as heatpf
 from heatpf_jax.evaluate import DEFAULT_BURN_IN
 from heatpf_jax.rollout import stack_params
 from heatpf_jax.sim import simulate

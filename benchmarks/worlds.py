@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
+from heatpf_jax.cli.settings import parse_seeds
 from heatpf_jax.evaluate import ScenarioResult, Variant, evaluate_sequences
 from heatpf_jax.presets import FilterOptions
-from heatpf_jax.settings import parse_seeds
 
 METHODS = ("heatmap", "paper", "extended", "kalman", "conventional", "bitbots2018")
 

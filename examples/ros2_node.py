@@ -9,12 +9,12 @@ Run it beside the detector (ROS 2 Humble or later, ``pip install "heatpf-jax[ros
 ``sensor_msgs/msg/CameraInfo``, the robot's ``nav_msgs/msg/Odometry`` and ``/tf`` + ``/tf_static``
 (``tf2_msgs/msg/TFMessage``) for the camera's optical frame in ``base_frame``. **Out**, every ``1 / rate``
 seconds (a tick without a new heat map ages the buffer), the messages of
-:func:`heatpf_jax.ros_messages.step_messages` under ``/heatpf``: ``estimate``
+:func:`heatpf_jax.io.ros_messages.step_messages` under ``/heatpf``: ``estimate``
 (``geometry_msgs/msg/PoseWithCovarianceStamped``), ``particles`` and ``measurements``
 (``sensor_msgs/msg/PointCloud2``), and ``modes`` / ``tracks`` (``visualization_msgs/msg/MarkerArray``) for a
 filter that has them, in ``base_frame``, stamped with the node's clock.
 
-The messages are converted by :mod:`heatpf_jax.ros_messages`, the same functions as ``heatpf import-rosbag``
+The messages are converted by :mod:`heatpf_jax.io.ros_messages`, the same functions as ``heatpf import-rosbag``
 and ``heatpf run --bag``: the node subscribes and publishes *serialised* messages (``raw=True``, CDR
 bytes) and converts them with rosbags' type store, so it needs no message package beyond ROS's own.
 
@@ -35,7 +35,7 @@ import sys
 
 import numpy as np
 
-from heatpf_jax import ros_messages as rm
+from heatpf_jax.io import ros_messages as rm
 
 IMAGE, CAMERA_INFO, ODOMETRY = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "nav_msgs/msg/Odometry"
 TF = rm.TF_TYPE
@@ -54,7 +54,7 @@ class HeatpfNode:
     def __init__(self, node, get_message, qos) -> None:
         import jax
 
-        from heatpf_jax.settings import method_with_settings, parse_settings
+        from heatpf_jax.cli.settings import method_with_settings, parse_settings
 
         self.node = node
         param = {name: node.declare_parameter(name, default).value for name, default in (

@@ -16,10 +16,10 @@ import jax
 import numpy as np
 
 from heatpf_jax import params as P
-from heatpf_jax.files import write_atomic
+from heatpf_jax.io.files import write_atomic
+from heatpf_jax.io.sequence import Sequence
 from heatpf_jax.presets import FilterOptions, build
 from heatpf_jax.rollout import run
-from heatpf_jax.sequence import Sequence
 
 __all__ = [
     "DEFAULT_BURN_IN",

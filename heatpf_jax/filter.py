@@ -2,19 +2,19 @@
 
 One step, in the order of the sequence-file contract::
 
-    ego.ego                 odometry or localisation (Olufs 3.5)      heatpf_jax.ego
-    motion.predict          odometry, noise, diffusion (III-D)        heatpf_jax.motion
-    source.measure          heat map -> Measurements (III-A, IV-B)    heatpf_jax.sources
-    buffer.update           odometry on the buffer, aging (III-C)     heatpf_jax.buffers
-    injectors[i].seed       re-detection seeds (Olufs 3.4), if any    heatpf_jax.injection_memory
-    observation             log-likelihood per particle (III-B)       heatpf_jax.observation
-    estimator.estimate      output (III-F)                            heatpf_jax.estimate
-    resampling.resample     ESS trigger + index resampler (III-E)     heatpf_jax.resampling
+    ego.ego                 odometry or localisation (Olufs 3.5)      heatpf_jax.motion.ego
+    motion.predict          odometry, noise, diffusion (III-D)        heatpf_jax.motion.random_walk
+    source.measure          heat map -> Measurements (III-A, IV-B)    heatpf_jax.sources.pixels
+    buffer.update           odometry on the buffer, aging (III-C)     heatpf_jax.buffers.aging
+    injectors[i].seed       re-detection seeds (Olufs 3.4), if any    heatpf_jax.injection.memory_hints
+    observation             log-likelihood per particle (III-B)       heatpf_jax.observation.kernels
+    estimator.estimate      output (III-F)                            heatpf_jax.estimate.top_fraction
+    resampling.resample     ESS trigger + index resampler (III-E)     heatpf_jax.resampling.resamplers
     memory.update           long-term track memory (Olufs 3.4)        heatpf_jax.memory
-    injectors[i].inject     explorers (III-E), hints, ...             heatpf_jax.injection
+    injectors[i].inject     explorers (III-E), hints, ...             heatpf_jax.injection.explorers
 
 Beside the pipeline, ``modes.modes`` reports fixed-size modes of the weighted particles (III-F, V;
-Olufs 3.2) in ``StepInfo.modes``: none by default (:class:`~heatpf_jax.modes.NoModes`).
+Olufs 3.2) in ``StepInfo.modes``: none by default (:class:`~heatpf_jax.estimate.modes.NoModes`).
 
 The particles are sorted by decreasing weight once per step (:func:`heatpf_jax.numerics.order_by_weight`);
 the estimator and the resampling strategy share that order. A :class:`Filter` is a ``NamedTuple`` of
@@ -34,20 +34,21 @@ from jax import lax
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax import params as P
-from heatpf_jax.buffers import AgingBuffer, AgingParams
-from heatpf_jax.ego import OdometryEgo
-from heatpf_jax.estimate import TopFraction, TopFractionParams
-from heatpf_jax.injection import ExplorerParams, InjectionContext, UniformBox, UniformExplorers
+from heatpf_jax.buffers.aging import AgingBuffer, AgingParams
+from heatpf_jax.estimate.modes import Modes, NoModes
+from heatpf_jax.estimate.top_fraction import TopFraction, TopFractionParams
+from heatpf_jax.injection.explorers import ExplorerParams, InjectionContext, UniformBox, UniformExplorers
 from heatpf_jax.measurements import Measurements, empty_measurements
-from heatpf_jax.memory import NoMemory, TrackTable
-from heatpf_jax.modes import Modes, NoModes
-from heatpf_jax.motion import RandomWalk, RandomWalkParams
-from heatpf_jax.motion_score import transition_log_weight
+from heatpf_jax.memory.table import TrackTable
+from heatpf_jax.memory.track_memory import NoMemory
+from heatpf_jax.motion.ego import OdometryEgo
+from heatpf_jax.motion.random_walk import RandomWalk, RandomWalkParams
+from heatpf_jax.motion.score import transition_log_weight
 from heatpf_jax.numerics import normalise_log, order_by_weight, ranks_of
-from heatpf_jax.observation import InverseDistance, InverseDistanceParams
+from heatpf_jax.observation.kernels import InverseDistance, InverseDistanceParams
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.resampling import ESSParams, ESSResampling
-from heatpf_jax.sources import PixelSource, SourceParams
+from heatpf_jax.resampling.resamplers import ESSParams, ESSResampling
+from heatpf_jax.sources.pixels import PixelSource, SourceParams
 
 __all__ = ["Filter", "FilterParams", "FilterState", "StepInfo"]
 
@@ -94,7 +95,7 @@ class FilterState(NamedTuple):
         buffer: the measurement buffer (the source's size).
         mean: ``float32 [2]`` the last estimate.
         t: ``int32 []`` number of steps taken.
-        memory: the long-term memory's tracks (:class:`~heatpf_jax.memory.TrackTable`; capacity 0 without).
+        memory: the long-term memory's tracks (:class:`~heatpf_jax.memory.table.TrackTable`; capacity 0 without).
     """
 
     particles: Any
@@ -124,9 +125,9 @@ class StepInfo(NamedTuple):
             same data, not across data sets. ``0`` when the buffer is empty.
         ancestors: ``int32 [N]`` the particle each slot was copied from (its own index without
             resampling); slots refilled by injectors still name the ancestor they replaced.
-        modes: :class:`~heatpf_jax.modes.Modes` of the weighted particles before resampling
+        modes: :class:`~heatpf_jax.estimate.modes.Modes` of the weighted particles before resampling
             (``K = Filter.modes.num_modes``, 0 by default).
-        tracks: the long-term memory's :class:`~heatpf_jax.memory.TrackTable` after this step
+        tracks: the long-term memory's :class:`~heatpf_jax.memory.table.TrackTable` after this step
             (capacity ``Filter.memory.capacity``, 0 by default).
     """
 
@@ -154,19 +155,20 @@ class Filter(NamedTuple):
     explorers. Presets for the other methods are in :mod:`heatpf_jax.presets`.
 
     Attributes:
-        motion: motion model (:mod:`heatpf_jax.motion`).
-        source: measurement source (:mod:`heatpf_jax.sources`).
-        buffer: measurement buffer (:mod:`heatpf_jax.buffers`).
-        observation: observation model (:mod:`heatpf_jax.observation`).
-        estimator: output (:mod:`heatpf_jax.estimate`).
-        resampling: resampling strategy (:mod:`heatpf_jax.resampling`).
-        injectors: injectors applied in order after resampling (:mod:`heatpf_jax.injection`); those with
-            a ``seed`` method also act before the weighting (:class:`~heatpf_jax.injection_memory.RedetectionSeeds`).
+        motion: motion model (:mod:`heatpf_jax.motion.random_walk`).
+        source: measurement source (:mod:`heatpf_jax.sources.pixels`).
+        buffer: measurement buffer (:mod:`heatpf_jax.buffers.aging`).
+        observation: observation model (:mod:`heatpf_jax.observation.kernels`).
+        estimator: output (:mod:`heatpf_jax.estimate.top_fraction`).
+        resampling: resampling strategy (:mod:`heatpf_jax.resampling.resamplers`).
+        injectors: injectors applied in order after resampling (:mod:`heatpf_jax.injection.explorers`); those with
+            a ``seed`` method also act before the weighting
+            (:class:`~heatpf_jax.injection.memory_hints.RedetectionSeeds`).
             Their ``name`` attributes must differ.
-        initial: initial distribution of the particles (a :class:`~heatpf_jax.injection.UniformBox`).
+        initial: initial distribution of the particles (a :class:`~heatpf_jax.injection.explorers.UniformBox`).
         num_particles: N.
-        modes: multi-modal output (:mod:`heatpf_jax.modes`), none by default.
-        ego: what moves particles, buffer and tracks with the robot (:mod:`heatpf_jax.ego`): odometry
+        modes: multi-modal output (:mod:`heatpf_jax.estimate.modes`), none by default.
+        ego: what moves particles, buffer and tracks with the robot (:mod:`heatpf_jax.motion.ego`): odometry
             by default.
         memory: the long-term memory (:mod:`heatpf_jax.memory`), none by default.
     """
@@ -307,7 +309,7 @@ class Filter(NamedTuple):
         particles, prior_log_w = self._seed(key, state, particles, buffer, ego.tracks, inputs.dt, params)
 
         unnormalised = prior_log_w + self.observation.log_likelihood(particles.xy, buffer, params.observation)
-        transition = transition_log_weight(particles)  # score-form motion only (heatpf_jax.motion_score)
+        transition = transition_log_weight(particles)  # score-form motion only (heatpf_jax.motion.score)
         if transition is not None:
             unnormalised = unnormalised + transition
         log_likelihood = jax.nn.logsumexp(unnormalised)

@@ -7,7 +7,7 @@ measurements, the buffered ones age: ``w <- w - v``; measurements with
 ``w < l`` are removed. Section III-D: odometry moves buffered measurements too.
 
 Each measurement also carries its pixel's ground *footprint* (the projection's Jacobian, metres per
-pixel), which range-aware observation models (:mod:`heatpf_jax.observation_range`) read.
+pixel), which range-aware observation models (:mod:`heatpf_jax.observation.range_aware`) read.
 
 Buffers have a fixed size with a ``valid`` mask so that every function here is
 jittable and vmappable; invalid slots hold ``xy = 0, weight = 0, footprint = 0``.
@@ -23,7 +23,7 @@ from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float
 
 from heatpf_jax.camera import ground_jacobian, project_pixel
-from heatpf_jax.motion import apply_odometry
+from heatpf_jax.frames import apply_odometry
 
 __all__ = [
     "Measurements",

@@ -18,13 +18,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
+    "NoParams",
     "Param",
     "as_arrays",
     "combine",
@@ -44,6 +45,10 @@ __all__ = [
 ]
 
 _EPS = 1e-6  # how far inside a closed bound a boundary value lands in unconstrained coordinates
+
+
+class NoParams(NamedTuple):
+    """The params of a piece without numbers."""
 
 
 @dataclass(frozen=True)

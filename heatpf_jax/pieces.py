@@ -48,8 +48,8 @@ class StepInputs(NamedTuple):
         plane_height: ``float32 []`` the ball radius.
         dt: ``float32 []`` the filter period, seconds.
         pose_delta: ``float32 [3]`` the self-localisation's motion since the previous step in the previous
-            base frame (:func:`heatpf_jax.ego.pose_deltas`); zeros when the sequence has no ``robot_pose``.
-        pose_confidence: ``float32 []`` its confidence (:func:`heatpf_jax.ego.pose_confidences`).
+            base frame (:func:`heatpf_jax.motion.ego.pose_deltas`); zeros when the sequence has no ``robot_pose``.
+        pose_confidence: ``float32 []`` its confidence (:func:`heatpf_jax.motion.ego.pose_confidences`).
     """
 
     heatmap: Float[Array, "h w"]
@@ -122,7 +122,7 @@ class Estimator(_Piece, Protocol):
 
 @runtime_checkable
 class ResamplingStrategy(_Piece, Protocol):
-    """Decides whether and how to resample (III-E); see :class:`heatpf_jax.resampling.Resampled`."""
+    """Decides whether and how to resample (III-E); see :class:`heatpf_jax.resampling.resamplers.Resampled`."""
 
     def resample(
         self,

@@ -18,20 +18,26 @@ from typing import Any, NamedTuple
 
 from heatpf_jax import params as P
 from heatpf_jax.baselines.kalman import KalmanFilter
-from heatpf_jax.buffers import AgingBuffer, LatestOnly
-from heatpf_jax.ego import EGO_MOTIONS
-from heatpf_jax.estimate import TopFraction, TopFractionParams
-from heatpf_jax.estimate_modes import DominantMode
+from heatpf_jax.buffers.aging import AgingBuffer, LatestOnly
+from heatpf_jax.estimate.dominant_mode import DominantMode
+from heatpf_jax.estimate.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
+from heatpf_jax.estimate.top_fraction import TopFraction, TopFractionParams
 from heatpf_jax.filter import Filter, FilterParams
-from heatpf_jax.injection import ExplorerParams, GaussianExplorers, RandomParticles, UniformBox, UniformExplorers
-from heatpf_jax.injection_memory import MemoryHints, RedetectionSeeds
-from heatpf_jax.injection_sensor import MeasurementExplorers
-from heatpf_jax.memory import NoMemory, TrackMemory
-from heatpf_jax.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
-from heatpf_jax.motion import DiffusionOnly, DiffusionParams, RandomWalk
-from heatpf_jax.motion_inertia import MassInertia
-from heatpf_jax.motion_velocity import ConstantVelocity
-from heatpf_jax.observation import (
+from heatpf_jax.injection.explorers import (
+    ExplorerParams,
+    GaussianExplorers,
+    RandomParticles,
+    UniformBox,
+    UniformExplorers,
+)
+from heatpf_jax.injection.measurement_explorers import MeasurementExplorers
+from heatpf_jax.injection.memory_hints import MemoryHints, RedetectionSeeds
+from heatpf_jax.memory.track_memory import NoMemory, TrackMemory
+from heatpf_jax.motion.constant_velocity import ConstantVelocity
+from heatpf_jax.motion.ego import EGO_MOTIONS
+from heatpf_jax.motion.mass_inertia import MassInertia
+from heatpf_jax.motion.random_walk import DiffusionOnly, DiffusionParams, RandomWalk
+from heatpf_jax.observation.kernels import (
     KNN_METHODS,
     Floored,
     FloorParams,
@@ -40,11 +46,11 @@ from heatpf_jax.observation import (
     InverseDistance,
     InverseDistanceParams,
 )
-from heatpf_jax.observation_range import FootprintTemplate
-from heatpf_jax.resampling import RESAMPLERS, ESSParams, ESSResampling
-from heatpf_jax.resampling_clustered import ClusterResampling
-from heatpf_jax.sources import CentroidSource, ClusterCentreSource, PixelSource, SourceParams
-from heatpf_jax.sources_lofted import LoftedSource
+from heatpf_jax.observation.range_aware import FootprintTemplate
+from heatpf_jax.resampling.clustered import ClusterResampling
+from heatpf_jax.resampling.resamplers import RESAMPLERS, ESSParams, ESSResampling
+from heatpf_jax.sources.lofted import LoftedSource
+from heatpf_jax.sources.pixels import CentroidSource, ClusterCentreSource, PixelSource, SourceParams
 
 __all__ = [
     "BITBOTS_BOX",
@@ -103,14 +109,14 @@ class FilterOptions(NamedTuple):
         downscale: integer block-averaging of the heat map before projection (III-A).
         observation: ``"auto"`` (the method's own: eq. 1 for ``paper``, ``"range_aware"`` for
             ``heatmap``, ``"gaussian"`` for ``extended``), ``"inverse_distance"`` (eq. 1), ``"gaussian"`` (kernel std
-            ``obs_std``) or ``"range_aware"`` (:class:`~heatpf_jax.observation_range.FootprintTemplate`:
+            ``obs_std``) or ``"range_aware"`` (:class:`~heatpf_jax.observation.range_aware.FootprintTemplate`:
             each pixel's kernel follows its ground footprint).
         knn: k-nearest search, ``"auto"`` (default), ``"blocked"`` or ``"dense"``: all exact.
-        modes: multi-modal output in ``StepInfo.modes`` (:mod:`heatpf_jax.modes`): ``"none"``
+        modes: multi-modal output in ``StepInfo.modes`` (:mod:`heatpf_jax.estimate.modes`): ``"none"``
             (default), ``"meanshift"``, ``"kmeans"`` or ``"gmm"`` (a Gaussian mixture fitted by EM).
         max_modes: K, the number of mode slots.
         ego: what moves the particles, the buffer and the memory's tracks with the robot
-            (:mod:`heatpf_jax.ego`): ``"odometry"`` (default), ``"none"``, or the sequence's
+            (:mod:`heatpf_jax.motion.ego`): ``"odometry"`` (default), ``"none"``, or the sequence's
             self-localisation ``robot_pose`` weighted by ``pose_confidence`` (Olufs 3.5): ``"pose"``
             (the particles only rotated, as the paper), ``"pose_full"`` (rotated and shifted), and
             ``"pose_unweighted"`` / ``"pose_full_unweighted"`` (the confidence ignored).
@@ -121,10 +127,10 @@ class FilterOptions(NamedTuple):
         source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"pixels"`` for
             ``paper``, ``heatmap`` and ``extended``), ``"pixels"`` (every pixel at or above the threshold, where
             it lies: the paper's source), ``"centroids"`` (every such pixel at its blob's centroid in the
-            image, :class:`~heatpf_jax.sources.CentroidSource`; with ``heatmap`` its blobs that spill out of a
+            image, :class:`~heatpf_jax.sources.pixels.CentroidSource`; with ``heatmap`` its blobs that spill out of a
             ground ball's window by more than 1.5 are dropped) or ``"lofted"`` (every such pixel on the ground,
             except those of a blob larger than a ground ball there, which go to the ground point under the ball
-            their blob's size places along the ray: :class:`~heatpf_jax.sources_lofted.LoftedSource`, for balls in
+            their blob's size places along the ray: :class:`~heatpf_jax.sources.lofted.LoftedSource`, for balls in
             the air). ``conventional``, ``kalman`` and
             ``bitbots2018`` keep their own.
     """
@@ -228,11 +234,11 @@ def paper_filter(options: FilterOptions = FilterOptions()) -> Filter:
 def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     """The product's heat-map filter (``--method heatmap``): the paper's pipeline (every above-threshold pixel
     a measurement; ``FilterOptions(source="centroids")`` moves each to its blob's centroid in the image
-    first, :class:`~heatpf_jax.sources.CentroidSource`) with a velocity state
-    (:class:`~heatpf_jax.motion_velocity.ConstantVelocity`) and a range-aware matched filter over the k nearest
-    measurements (:class:`~heatpf_jax.observation_range.FootprintTemplate`, each kernel as wide as
+    first, :class:`~heatpf_jax.sources.pixels.CentroidSource`) with a velocity state
+    (:class:`~heatpf_jax.motion.constant_velocity.ConstantVelocity`) and a range-aware matched filter over the k nearest
+    measurements (:class:`~heatpf_jax.observation.range_aware.FootprintTemplate`, each kernel as wide as
     its pixel's ground footprint) instead of eq. (1)'s inverse distance, and explorers drawn from the
-    measurements beside the uniform ones (:class:`~heatpf_jax.injection_sensor.MeasurementExplorers`);
+    measurements beside the uniform ones (:class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`);
     its default params are :func:`heatmap_params`."""
     base = _particle_filter(options, _pixels(options), observation="range_aware")
     return _with_hints(base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers())))

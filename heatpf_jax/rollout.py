@@ -18,9 +18,9 @@ from jax import lax
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from heatpf_jax import params as P
-from heatpf_jax.ego import pose_confidences, pose_deltas
+from heatpf_jax.io.sequence import Sequence
+from heatpf_jax.motion.ego import pose_confidences, pose_deltas
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.sequence import Sequence
 
 __all__ = ["RunResult", "prepare_run", "run", "run_core", "stack_params", "validate_params"]
 
@@ -128,7 +128,7 @@ def prepare_run(sequence: Sequence, params, model) -> tuple[Sequence, Any]:
 
 def _pose_inputs(sequence: Sequence, model) -> dict[str, Any]:
     """``robot_pose`` replaced by the pose deltas and ``pose_confidence`` by theirs where the model reads
-    them (:mod:`heatpf_jax.ego`); both dropped otherwise (one compilation with or without them)."""
+    them (:mod:`heatpf_jax.motion.ego`); both dropped otherwise (one compilation with or without them)."""
     if "robot_pose" not in getattr(model, "requires", ()):
         return {"robot_pose": None, "pose_confidence": None}
     if sequence.robot_pose is None:
@@ -159,7 +159,7 @@ def run(key: PRNGKeyArray, sequence: Sequence, params, model) -> RunResult:
 
     Args:
         key: PRNG key.
-        sequence: a :class:`~heatpf_jax.sequence.Sequence` (see ``load_sequence``).
+        sequence: a :class:`~heatpf_jax.io.sequence.Sequence` (see ``load_sequence``).
         params: the model's params (e.g. :class:`~heatpf_jax.filter.FilterParams`).
         model: a :class:`~heatpf_jax.filter.Filter`, a baseline, or any model (static).
 

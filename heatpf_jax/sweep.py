@@ -36,8 +36,8 @@ from jax.sharding import PartitionSpec as P
 from jaxtyping import PRNGKeyArray
 
 from heatpf_jax import params as params_lib
+from heatpf_jax.io.sequence import Sequence
 from heatpf_jax.rollout import run, validate_params
-from heatpf_jax.sequence import Sequence
 
 __all__ = ["SweepMemory", "batch_size_of", "pad_params", "sweep", "sweep_memory"]
 

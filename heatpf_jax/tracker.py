@@ -22,7 +22,7 @@ Like ``run``, the first step after construction or a reset ignores its odometry 
 previous base frame).
 
 **Starting fast.** The step is compiled inside JAX's persistent compilation cache
-(:func:`heatpf_jax.cache.compilation_cache`, the same directory and the same opt-outs as the ``heatpf``
+(:func:`heatpf_jax.io.cache.compilation_cache`, the same directory and the same opt-outs as the ``heatpf``
 command: ``$HEATPF_CACHE_DIR``, ``HEATPF_NO_CACHE=1``, or ``cache=False``), so the second start of a robot's
 process loads the compiled step instead of compiling it again. JAX's cache settings are restored after the
 construction: the rest of the process is left as it was.
@@ -39,9 +39,9 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray
 
 from heatpf_jax import params as P
-from heatpf_jax.cache import compilation_cache
-from heatpf_jax.ego import pose_deltas
-from heatpf_jax.estimate import Estimate
+from heatpf_jax.estimate.top_fraction import Estimate
+from heatpf_jax.io.cache import compilation_cache
+from heatpf_jax.motion.ego import pose_deltas
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.rollout import validate_params
 
@@ -181,7 +181,7 @@ class Tracker:
         num_steps: ``T`` to draw ``run``'s keys for a ``T``-step sequence (and refuse more steps);
             ``None`` (default) for an open-ended loop (``fold_in`` keys).
         cache: compile inside JAX's persistent compilation cache: ``True`` (default) in the environment's
-            directory (:func:`heatpf_jax.cache.cache_directory`; ``HEATPF_NO_CACHE=1`` turns it off), a path
+            directory (:func:`heatpf_jax.io.cache.cache_directory`; ``HEATPF_NO_CACHE=1`` turns it off), a path
             for that directory, ``False`` to leave JAX's cache settings alone.
 
     Raises:
@@ -290,12 +290,12 @@ class Tracker:
             odometry: ``(dx, dy, dtheta)`` from the previous tick's base frame to this one's; ignored on
                 the first tick after construction or :meth:`reset`.
             robot_pose: the self-localisation's ``(x, y, theta)`` in a world frame now, for a model whose
-                ego-motion reads it (``--set ego=pose``, :mod:`heatpf_jax.ego`; required there): the
+                ego-motion reads it (``--set ego=pose``, :mod:`heatpf_jax.motion.ego`; required there): the
                 motion since the previous tick's pose is computed here in float64.
             pose_confidence: its confidence in ``[0, 1]``.
 
         Returns:
-            :class:`~heatpf_jax.estimate.Estimate` (``mean [2]``, ``cov [2, 2]``, ``weighted_mean [2]``);
+            :class:`~heatpf_jax.estimate.top_fraction.Estimate` (``mean [2]``, ``cov [2, 2]``, ``weighted_mean [2]``);
             the whole :class:`~heatpf_jax.filter.StepInfo` is :attr:`last_info`.
 
         Raises:
@@ -320,7 +320,7 @@ class Tracker:
         return Estimate(mean=info.mean, cov=info.cov, weighted_mean=info.weighted_mean)
 
     def _pose_motion(self, robot_pose, pose_confidence) -> tuple[np.ndarray, np.float32]:
-        """The pose delta since the previous tick and its confidence (:func:`heatpf_jax.ego.pose_deltas`)."""
+        """The pose delta since the previous tick and its confidence (:func:`heatpf_jax.motion.ego.pose_deltas`)."""
         if robot_pose is None:
             if "robot_pose" in getattr(self._model, "requires", ()):
                 raise ValueError("robot_pose: this model's ego-motion reads the self-localisation; pass robot_pose "

@@ -3,8 +3,8 @@
 Three parts:
 
 * :func:`differentiable`: the same filter with gradient estimators in place, pieces wrapped, forward pass
-  unchanged: stop-gradient resampling (:mod:`heatpf_jax.resampling_gradients`) and score-form motion
-  gradients (:mod:`heatpf_jax.motion_score`) by default; every step under ``jax.checkpoint``
+  unchanged: stop-gradient resampling (:mod:`heatpf_jax.resampling.gradients`) and score-form motion
+  gradients (:mod:`heatpf_jax.motion.score`) by default; every step under ``jax.checkpoint``
   (:class:`Checkpointed`), so the memory of a gradient through a ``lax.scan`` of T steps holds the
   carries, not every step's intermediates.
 * losses: :func:`mse_loss` (squared error of the estimate after a burn-in) and :func:`nll_loss` (minus the
@@ -35,11 +35,11 @@ import optax
 from jaxtyping import Array, Float, PRNGKeyArray
 
 from heatpf_jax import params as P
-from heatpf_jax.motion_score import ScoreMotion
+from heatpf_jax.io.sequence import Sequence
+from heatpf_jax.motion.score import ScoreMotion
 from heatpf_jax.pieces import ModelWrapper
-from heatpf_jax.resampling_gradients import DetachResampling, SoftResampling, StopGradientResampling
+from heatpf_jax.resampling.gradients import DetachResampling, SoftResampling, StopGradientResampling
 from heatpf_jax.rollout import prepare_run, run_core, validate_params
-from heatpf_jax.sequence import Sequence
 
 __all__ = [
     "LOSSES",
@@ -88,7 +88,7 @@ def differentiable(
             resampling) or ``"none"`` (the filter's own strategy).
         motion: ``"score"`` (default; the transition density's score in the weights) or ``"pathwise"``
             (through the particle positions). A motion model without Gaussian noise
-            (:class:`~heatpf_jax.motion_inertia.MassInertia`) stays pathwise whatever is asked.
+            (:class:`~heatpf_jax.motion.mass_inertia.MassInertia`) stays pathwise whatever is asked.
         checkpoint: wrap the step in ``jax.checkpoint`` (:class:`Checkpointed`).
 
     Raises:

@@ -14,10 +14,10 @@ import pytest
 pytest.importorskip("rosbags")
 
 import heatpf_jax as hp  # noqa: E402
-from heatpf_jax import ros_messages as rm  # noqa: E402
-from heatpf_jax.settings import method_with_settings, parse_settings  # noqa: E402
+from heatpf_jax.cli.settings import method_with_settings, parse_settings  # noqa: E402
+from heatpf_jax.io import ros_messages as rm  # noqa: E402
 from heatpf_jax.sim import integrate_odometry  # noqa: E402
-from tests.test_cli import SMALL_SET  # noqa: E402
+from tests.cli.helpers import SMALL_SET  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ROS2 = rm.typestore()

@@ -89,7 +89,7 @@ def kalman_toy():
     # looking straight down projects that pixel exactly onto z_t (plane height 0).
     heat = np.zeros((KF_STEPS, 3, 3), np.float32)
     heat[:, 1, 1] = 1.0
-    poses = np.stack([hp.camera_pose(height=1.0, pitch=np.pi / 2, x=zt[0], y=zt[1]) for zt in z])
+    poses = np.stack([hp.camera.camera_pose(height=1.0, pitch=np.pi / 2, x=zt[0], y=zt[1]) for zt in z])
     seq = hp.validate_sequence(
         hp.Sequence(
             heatmaps=heat,
@@ -103,7 +103,7 @@ def kalman_toy():
         )
     )
     # The centre pixel really projects onto z_t.
-    xy, ok = hp.project_pixel(jnp.array([1.0, 1.0]), jnp.asarray(seq.intrinsics, jnp.float32),
+    xy, ok = hp.camera.project_pixel(jnp.array([1.0, 1.0]), jnp.asarray(seq.intrinsics, jnp.float32),
                               jnp.asarray(poses[5], jnp.float32), jnp.float32(0.0))
     assert bool(ok)
     np.testing.assert_allclose(xy, z[5], atol=1e-6)
@@ -455,15 +455,18 @@ _BAD_BOX = (1.0, 0.0, -1.0, 1.0)
 @pytest.mark.parametrize(
     "field, change, model",
     [
-        ("resampler", {"resampler": "bogus"}, SMALL_FILTER._replace(resampling=hp.ESSResampling(resampler="bogus"))),
+        ("resampler", {"resampler": "bogus"},
+         SMALL_FILTER._replace(resampling=hp.resampling.ESSResampling(resampler="bogus"))),
         # The spawn and observation names choose a piece's type: no piece holds an unknown name.
         ("spawn", {"spawn": "normal"}, None),
         ("observation", {"observation": "cauchy"}, None),
         ("num_particles", {"num_particles": 0}, SMALL_FILTER._replace(num_particles=0)),
-        ("k_max", {"k_max": 1.5}, SMALL_FILTER._replace(observation=hp.InverseDistance(k_max=1.5))),
-        ("knn", {"knn": "kdtree"}, SMALL_FILTER._replace(observation=hp.InverseDistance(k_max=8, knn="kdtree"))),
-        ("spawn_box", {"spawn_box": _BAD_BOX}, SMALL_FILTER._replace(initial=hp.UniformBox(box=_BAD_BOX))),
-        ("spawn_box", {"spawn_box": _BAD_BOX}, SMALL_FILTER._replace(injectors=(hp.UniformExplorers(box=_BAD_BOX),))),
+        ("k_max", {"k_max": 1.5}, SMALL_FILTER._replace(observation=hp.observation.InverseDistance(k_max=1.5))),
+        ("knn", {"knn": "kdtree"},
+         SMALL_FILTER._replace(observation=hp.observation.InverseDistance(k_max=8, knn="kdtree"))),
+        ("spawn_box", {"spawn_box": _BAD_BOX}, SMALL_FILTER._replace(initial=hp.injection.UniformBox(box=_BAD_BOX))),
+        ("spawn_box", {"spawn_box": _BAD_BOX},
+         SMALL_FILTER._replace(injectors=(hp.injection.UniformExplorers(box=_BAD_BOX),))),
     ],
     ids=["resampler", "spawn", "observation", "num_particles", "k_max", "knn", "spawn_box-initial",
          "spawn_box-explorers"],

@@ -11,12 +11,12 @@ import heatpf_jax as hp
 H, W = 24, 32
 INTRINSICS = np.array([32.0, 30.0, 15.5, 11.5])  # heat-map pixels; fx != fy
 PLANE = 0.05
-POSE = hp.camera_pose(height=0.55, pitch=0.3, yaw=0.2, roll=0.05, x=0.1, y=-0.05)
+POSE = hp.camera.camera_pose(height=0.55, pitch=0.3, yaw=0.2, roll=0.05, x=0.1, y=-0.05)
 M_FIT = 300  # fewer slots than pixels: the compaction / top-k paths
 
 
 def _project(heatmap, threshold, *, max_measurements, max_distance=np.inf, downscale=1, pose=POSE):
-    return hp.project_heatmap(
+    return hp.measurements.project_heatmap(
         heatmap,
         jnp.asarray(INTRINSICS, jnp.float32),
         jnp.asarray(pose, jnp.float32),
@@ -146,7 +146,7 @@ def test_project_heatmap_traced_threshold_equals_concrete():
     intr = jnp.asarray(INTRINSICS, jnp.float32)
     pose = jnp.asarray(POSE, jnp.float32)
     for threshold in (0.3, 0.8):  # overflow and compaction paths
-        concrete = hp.project_heatmap(
+        concrete = hp.measurements.project_heatmap(
             heat, intr, pose, threshold=threshold, plane_height=PLANE, max_measurements=M_FIT
         )
         traced = _project_jit(heat, jnp.float32(threshold), max_measurements=M_FIT)
@@ -204,7 +204,7 @@ def test_project_heatmap_valid_first_when_padded():
 def test_downscale_heatmap_block_mean_and_pixel_centres(factor, shape):
     rng = np.random.default_rng(36 + factor)
     heat = random_heatmap(rng, shape)
-    small, intr = hp.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), factor)
+    small, intr = hp.measurements.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), factor)
     small, intr = np.asarray(small), np.asarray(intr, np.float64)
     h2, w2 = shape[0] // factor, shape[1] // factor
     assert small.shape == (h2, w2)
@@ -220,7 +220,7 @@ def test_downscale_heatmap_block_mean_and_pixel_centres(factor, shape):
         uo, vo = factor * up + (factor - 1) / 2, factor * vp + (factor - 1) / 2
         np.testing.assert_allclose(new_ray, [(uo - cx) / fx, (vo - cy) / fy, 1.0], atol=1e-6)
     # factor 1 is the identity.
-    same, intr1 = hp.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), 1)
+    same, intr1 = hp.measurements.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), 1)
     np.testing.assert_array_equal(np.asarray(same), heat)
     np.testing.assert_array_equal(np.asarray(intr1), INTRINSICS.astype(np.float32))
 
@@ -228,9 +228,9 @@ def test_downscale_heatmap_block_mean_and_pixel_centres(factor, shape):
 def test_downscale_bad_factor_raises():
     heat = jnp.ones((6, 8), jnp.float32)
     with pytest.raises(ValueError):
-        hp.downscale_heatmap(heat, jnp.asarray(INTRINSICS, jnp.float32), 0)
+        hp.measurements.downscale_heatmap(heat, jnp.asarray(INTRINSICS, jnp.float32), 0)
     with pytest.raises(ValueError):
-        hp.downscale_heatmap(heat, jnp.asarray(INTRINSICS, jnp.float32), 7)
+        hp.measurements.downscale_heatmap(heat, jnp.asarray(INTRINSICS, jnp.float32), 7)
 
 
 def test_project_heatmap_downscale_uses_block_centres():
@@ -269,8 +269,8 @@ def make_buffer(weights, valid, xy=None):
     )
 
 
-_update = jax.jit(hp.update_buffer)
-_age = jax.jit(hp.age_measurements)
+_update = jax.jit(hp.measurements.update_buffer)
+_age = jax.jit(hp.measurements.age_measurements)
 
 
 def test_age_measurements_subtracts_and_invalidates():
@@ -343,7 +343,7 @@ def test_move_measurements_world_fixed_points():
     weights = rng.uniform(0.1, 1.0, n).astype(np.float32)
     xy_in = np.where(valid[:, None], xy, 0.0)
     buf = make_buffer(weights, valid, xy_in)
-    move = jax.jit(hp.move_measurements)
+    move = jax.jit(hp.measurements.move_measurements)
     for odo in rng.uniform([-0.3, -0.3, -0.8], [0.3, 0.3, 0.8], (3, 3)):
         out = move(buf, jnp.asarray(odo, jnp.float32))
         c, s = np.cos(odo[2]), np.sin(odo[2])

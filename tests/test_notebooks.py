@@ -37,7 +37,7 @@ def test_kernels_start_only_for_a_run_that_selected_the_notebooks(monkeypatch):
     started = []
     monkeypatch.setattr(runs, "start", lambda: started.append(True))
     notebook = SimpleNamespace(nodeid="tests/test_notebooks.py::test_notebook_executes[quickstart.ipynb]")
-    other = SimpleNamespace(nodeid="tests/test_cli.py::test_run_writes_csv_and_prints_errors")
+    other = SimpleNamespace(nodeid="tests/cli/test_main.py::test_run_writes_csv_and_prints_errors")
 
     def session(items, collectonly=False):
         return SimpleNamespace(items=items, config=SimpleNamespace(option=SimpleNamespace(collectonly=collectonly)))

@@ -126,4 +126,4 @@ def test_validate_names_the_dotted_path():
     with pytest.raises(ValueError, match=r"^injectors.explorers.explorer_fraction:"):
         hp.validate_params(model.make_params(explorer_fraction=1.0), model)
     with pytest.raises(TypeError, match="^params: expected FilterParams"):
-        hp.validate_params(hp.KalmanParams(), model)
+        hp.validate_params(hp.baselines.KalmanParams(), model)

@@ -11,13 +11,15 @@ from heatpf_jax import pieces
 from heatpf_jax.params import Param, validate
 
 PIECES = [
-    (pieces.MotionModel, [hp.RandomWalk(), hp.DiffusionOnly()]),
-    (pieces.MeasurementSource, [hp.PixelSource(), hp.ClusterCentreSource()]),
-    (pieces.Buffer, [hp.AgingBuffer(), hp.LatestOnly()]),
-    (pieces.ObservationModel, [hp.InverseDistance(), hp.GaussianKernel(), hp.Floored(hp.InverseDistance())]),
-    (pieces.Estimator, [hp.TopFraction()]),
-    (pieces.ResamplingStrategy, [hp.ESSResampling(r) for r in hp.RESAMPLERS.values()]),
-    (pieces.Injector, [hp.UniformExplorers(), hp.GaussianExplorers(), hp.RandomParticles()]),
+    (pieces.MotionModel, [hp.motion.RandomWalk(), hp.motion.DiffusionOnly()]),
+    (pieces.MeasurementSource, [hp.sources.PixelSource(), hp.sources.ClusterCentreSource()]),
+    (pieces.Buffer, [hp.buffers.AgingBuffer(), hp.buffers.LatestOnly()]),
+    (pieces.ObservationModel, [hp.observation.InverseDistance(), hp.observation.GaussianKernel(),
+                               hp.observation.Floored(hp.observation.InverseDistance())]),
+    (pieces.Estimator, [hp.estimate.TopFraction()]),
+    (pieces.ResamplingStrategy, [hp.resampling.ESSResampling(r) for r in hp.resampling.RESAMPLERS.values()]),
+    (pieces.Injector, [hp.injection.UniformExplorers(), hp.injection.GaussianExplorers(),
+                       hp.injection.RandomParticles()]),
 ]
 
 

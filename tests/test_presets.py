@@ -25,7 +25,7 @@ def test_every_method_builds_and_validates():
 
 def test_conventional_is_the_particle_filter_with_the_cluster_source():
     heat, conv = hp.build("paper").model, hp.build("conventional").model
-    assert isinstance(conv.source, hp.ClusterCentreSource) and isinstance(heat.source, hp.PixelSource)
+    assert isinstance(conv.source, hp.sources.ClusterCentreSource) and isinstance(heat.source, hp.sources.PixelSource)
     assert conv._replace(source=heat.source) == heat  # every other piece is the same
     assert hash(hp.paper_filter()) == hash(hp.paper_filter())  # equal filters share a compilation
 
@@ -35,10 +35,10 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     # paper: the 2019 filter as the default Filter of pieces (static position, eq. 1, plain resampling).
     assert paper.model == hp.Filter() and paper.params == hp.Filter().default_params()
     # heatmap: the same pipeline with a velocity state and the range-aware observation.
-    assert isinstance(heat.model.source, hp.PixelSource)
-    assert isinstance(heat.model.motion, hp.ConstantVelocity)
-    assert isinstance(heat.model.observation, hp.FootprintTemplate)
-    assert [type(i) for i in heat.model.injectors] == [hp.UniformExplorers, hp.MeasurementExplorers]
+    assert isinstance(heat.model.source, hp.sources.PixelSource)
+    assert isinstance(heat.model.motion, hp.motion.ConstantVelocity)
+    assert isinstance(heat.model.observation, hp.observation.FootprintTemplate)
+    assert [type(i) for i in heat.model.injectors] == [hp.injection.UniformExplorers, hp.injection.MeasurementExplorers]
     assert heat.model._replace(
         source=paper.model.source, motion=paper.model.motion, observation=paper.model.observation,
         injectors=paper.model.injectors,
@@ -46,31 +46,35 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     assert heat.params.observation.k == 10
     # source=centroids: each pixel at its blob's centroid, heatmap's spill gate 1.5 (paper's: none).
     centroids = hp.build("heatmap", hp.FilterOptions(source="centroids"))
-    assert centroids.model == heat.model._replace(source=hp.CentroidSource())
-    assert centroids.params.source == hp.CentroidParams(max_spill=1.5)
+    assert centroids.model == heat.model._replace(source=hp.sources.CentroidSource())
+    assert centroids.params.source == hp.sources.CentroidParams(max_spill=1.5)
     assert hp.build("heatmap", hp.FilterOptions(source="pixels")) == heat
-    assert hp.build("paper", hp.FilterOptions(source="centroids")).params.source == hp.CentroidParams()
+    assert hp.build("paper", hp.FilterOptions(source="centroids")).params.source == hp.sources.CentroidParams()
     gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
     assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05
     # extended: mass inertia, cluster-wise resampling, random and measurement particles, dominant mode.
-    assert isinstance(ext.model.motion, hp.MassInertia) and isinstance(ext.model.resampling, hp.ClusterResampling)
-    assert [type(i) for i in ext.model.injectors] == [hp.UniformExplorers, hp.RandomParticles, hp.MeasurementExplorers]
+    assert isinstance(ext.model.motion, hp.motion.MassInertia) and isinstance(
+        ext.model.resampling, hp.resampling.ClusterResampling
+    )
+    assert [type(i) for i in ext.model.injectors] == [
+        hp.injection.UniformExplorers, hp.injection.RandomParticles, hp.injection.MeasurementExplorers
+    ]
     assert not ext.model.resampling.correct and ext.params.resampling.bandwidth == 0.1
-    assert isinstance(ext.model.estimator, hp.DominantMode)
+    assert isinstance(ext.model.estimator, hp.estimate.DominantMode)
     # The observation option still applies to every particle filter.
     forced = hp.build("heatmap", hp.FilterOptions(observation="inverse_distance")).model
-    assert isinstance(forced.observation, hp.InverseDistance)
+    assert isinstance(forced.observation, hp.observation.InverseDistance)
 
 
 def test_bitbots2018_settings():
     model, params = hp.build("bitbots2018")
     assert model.num_particles == 2000
-    assert isinstance(model.motion, hp.DiffusionOnly) and params.motion.diffusion_std == 0.1
-    assert isinstance(model.buffer, hp.LatestOnly)
-    assert isinstance(model.observation, hp.Floored) and params.observation.weight_floor == 0.001
+    assert isinstance(model.motion, hp.motion.DiffusionOnly) and params.motion.diffusion_std == 0.1
+    assert isinstance(model.buffer, hp.buffers.LatestOnly)
+    assert isinstance(model.observation, hp.observation.Floored) and params.observation.weight_floor == 0.001
     assert params.observation.base.k == 1
     assert params.estimator.top_fraction == 0.5
-    assert model.resampling.resampler is hp.systematic and params.resampling.resample_threshold == 1.0
+    assert model.resampling.resampler is hp.resampling.systematic and params.resampling.resample_threshold == 1.0
     (explorers,) = model.injectors
     assert explorers.box == (-18.0, 18.0, -18.0, 18.0) and params.injectors["explorers"].explorer_fraction == 0.2
     assert model.initial.box == (-18.0, 18.0, -18.0, 18.0)

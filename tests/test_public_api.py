@@ -90,8 +90,8 @@ def test_measurements_built_with_three_fields_weight_particles_like_explicit_zer
         assert m.footprint.shape == (12, 2, 2) and m.footprint.dtype == jnp.float32
         np.testing.assert_array_equal(np.asarray(m.footprint), 0.0)
     particles = jnp.asarray(rng.normal(size=(30, 2)), jnp.float32)
-    got = np.asarray(hp.particle_weights(particles, positional, k=3))
-    np.testing.assert_allclose(got, np.asarray(hp.particle_weights(particles, explicit, k=3)), rtol=1e-6)
+    got = np.asarray(hp.observation.particle_weights(particles, positional, k=3))
+    np.testing.assert_allclose(got, np.asarray(hp.observation.particle_weights(particles, explicit, k=3)), rtol=1e-6)
     # Eq. 1 by brute force: the sum over the 3 nearest valid measurements of weight / distance.
     d = np.linalg.norm(np.asarray(particles)[:, None] - np.asarray(xy)[None], axis=-1)
     d = np.where(np.asarray(valid)[None], d, np.inf)

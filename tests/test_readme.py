@@ -307,7 +307,7 @@ def test_cli_lines_parse():
     import contextlib
     import io
 
-    from heatpf_jax.cli import _build_parser
+    from heatpf_jax.cli.parser import _build_parser
 
     assert CLI_LINES, "no heatpf command lines found"
     failed = []
@@ -354,3 +354,18 @@ def test_cli_page_matches_the_parser():
     have, want = _generated_parts(page), _generated_parts(cli_docs.render(page))
     stale = sorted(name for name in want if have.get(name) != want[name])
     assert not stale, f"docs/cli.md is out of date for {stale}: run python -m tests.data.cli_docs"
+
+
+def test_api_pages_and_module_table_match_the_package():
+    """Every module is on an API page and in the module-to-stage table, as ``python -m tests.data.api_docs``
+    writes them, so a module added to a stage cannot go undocumented."""
+    from tests.data import api_docs
+
+    stale = [file for file, text in api_docs.pages().items() if (api_docs.API / file).read_text() != text]
+    assert not stale, f"docs/api/{stale} out of date: run python -m tests.data.api_docs"
+    listed = {line.split("::: ")[1].strip() for text in api_docs.pages().values()
+              for line in text.splitlines() if line.startswith("::: ")}
+    missing = [m for m in api_docs.all_modules() if m not in listed]
+    assert not missing, f"modules on no API page: {missing}"
+    page = api_docs.TABLE_PAGE.read_text()
+    assert api_docs.table_page(page) == page, "the module table is out of date: run python -m tests.data.api_docs"

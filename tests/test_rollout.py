@@ -16,8 +16,8 @@ from scipy.special import logsumexp
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
-from heatpf_jax.buffers import NoParams
-from heatpf_jax.injection import replace_slots, take_slots
+from heatpf_jax.buffers.aging import NoParams
+from heatpf_jax.injection.explorers import replace_slots, take_slots
 from tests.conftest import SMALL_FILTER, step_inputs
 
 

@@ -346,7 +346,7 @@ def test_cli_sweep_ctrl_c_keeps_finished_rows_and_resumes(tmp_path, small_sequen
 def test_idle_axes_names_only_the_axes_along_which_nothing_changes():
     """Hand-made 2 x 3 grid: the errors depend on k only, so aging is idle and k is not; a one-value axis is
     never reported, and a change in one group of rows is enough to keep an axis."""
-    from heatpf_jax.cli import idle_axes
+    from heatpf_jax.cli.sweep import idle_axes
 
     names = ["k", "aging", "threshold"]
     values = [[k, a, "0.3"] for k in ("1", "3") for a in ("0.3", "0.45", "0.6")]

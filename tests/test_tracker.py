@@ -232,7 +232,7 @@ def test_self_localisation_tick_by_tick_equals_run(small_sequence, rng):
     poses = np.cumsum(rng.normal(0.0, [0.05, 0.05, 0.1], (seq.num_steps, 3)), axis=0) + [40.0, -12.0, 0.0]
     conf = rng.uniform(0.0, 1.0, seq.num_steps)
     seq = seq._replace(robot_pose=poses, pose_confidence=conf)
-    model = SMALL_FILTER._replace(ego=hp.LocalisationEgo(translate=True))
+    model = SMALL_FILTER._replace(ego=hp.motion.LocalisationEgo(translate=True))
     params = model.make_params(k=3)
     key = jax.random.key(5)
     ref = hp.run(key, seq, params, model)

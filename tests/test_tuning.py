@@ -44,7 +44,7 @@ def test_tune_moves_the_tuned_parameters_only(heatmap, sequences):
     model, params = heatmap
     key = jax.random.key(0)
     # Under conftest's strict dtype promotion (tune handles optax's float ** int32 itself); the gradient's
-    # compilation is shared with tests/test_cli_tune.py's tuning (same model, loss, burn-in and shapes).
+    # compilation is shared with tests/cli/test_tune.py's tuning (same model, loss, burn-in and shapes).
     result = tune(key, sequences, params, model, names=NAMES, steps=STEPS, burn_in=BURN_IN)
     assert sorted(result.names) == sorted(NAMES)
     assert result.history.shape == (STEPS,) and np.all(np.isfinite(result.history))

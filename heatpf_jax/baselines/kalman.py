@@ -1,7 +1,7 @@
 """The Kalman baseline: a constant-velocity Kalman filter on the conventional measurement.
 
 What the original team ships today: one point per heat map (the centre of the
-strongest image-space cluster, :mod:`heatpf_jax.image_components`) filtered by a
+strongest image-space cluster, :mod:`heatpf_jax.sources.image_components`) filtered by a
 constant-velocity Kalman filter in the robot's base frame. Configured like the
 heat-map filter (the same threshold, odometry noise and projection) and
 differing only where the method does:
@@ -28,14 +28,14 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
+from heatpf_jax.estimate.modes import Modes
 from heatpf_jax.filter import StepInfo
-from heatpf_jax.injection import UniformBox
+from heatpf_jax.injection.explorers import UniformBox
 from heatpf_jax.measurements import empty_measurements
-from heatpf_jax.memory import empty_tracks
-from heatpf_jax.modes import Modes
+from heatpf_jax.memory.table import empty_tracks
 from heatpf_jax.params import make_params, nonnegative, positive
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.sources import ClusterCentreSource, SourceParams
+from heatpf_jax.sources.pixels import ClusterCentreSource, SourceParams
 
 __all__ = [
     "KalmanEmissionParams",

@@ -4,7 +4,7 @@ The ball does a Gaussian random walk (std ``q`` per step and axis, from the orig
 3 x 3 image whose centre pixel alone is lit, seen by a camera 1 m above the noisy measurement
 ``z_t = x_t + r * N(0, I)`` looking straight down, so the pixel projects exactly onto ``z_t``. A particle
 filter with the random-walk motion (diffusion ``q``, no odometry) and the Gaussian observation density on
-the single measurement (:class:`~heatpf_jax.observation.GaussianDensity`, ``k = 1``) is then a bootstrap
+the single measurement (:class:`~heatpf_jax.observation.kernels.GaussianDensity`, ``k = 1``) is then a bootstrap
 filter of a linear-Gaussian model whose exact answers come from a Kalman filter:
 :func:`kalman_losses` gives the log-likelihood and the squared error of the posterior mean as functions of
 ``(log q, log r)``, so ``jax.grad`` of it in float64 is the exact gradient that
@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from heatpf_jax.camera import camera_pose
-from heatpf_jax.sequence import Sequence, validate_sequence
+from heatpf_jax.io.sequence import Sequence, validate_sequence
 
 __all__ = ["kalman_losses", "linear_gaussian_filter", "simulate_linear_gaussian"]
 

@@ -24,8 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from heatpf_jax.sequence import Sequence
-from heatpf_jax.sim.world import smooth_signal, world_to_base
+from heatpf_jax.io.sequence import Sequence
+from heatpf_jax.sim.world import world_to_base
+from heatpf_jax.sim.world_events import smooth_signal
 
 __all__ = ["render_rgb", "render_rgb_frame"]
 

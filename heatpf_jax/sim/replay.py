@@ -5,7 +5,7 @@
 
 * **Scale.** Pitch positions are scaled by ``scale`` (1/8 by default: professional speeds of 5-25 m/s
   become 0.6-3 m/s, a 105 x 68 m pitch 13 x 8.5 m) about the median of the piece's ball positions, and
-  resampled to the filter period ``dt`` (:func:`~heatpf_jax.sim.tracks.resample_track`: linear
+  resampled to the filter period ``dt`` (:func:`~heatpf_jax.sim.tracks_pieces.resample_track`: linear
   interpolation, not across gaps longer than ``max_gap_s``; across such gaps the ball is hidden while
   the ground truth interpolates). Time is not scaled.
 * **Placement.** The robot stands where the ball stays in front of it: among 12 headings (a random
@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from heatpf_jax.camera import camera_pose
-from heatpf_jax.sequence import Sequence, validate_sequence
+from heatpf_jax.io.sequence import Sequence, validate_sequence
 from heatpf_jax.sim.render import BALL_RADIUS, blob, compose_frame, project_centre, scaled_camera
 from heatpf_jax.sim.tracks import (
     BallTrack,
@@ -207,7 +207,7 @@ def replay_world(
     See the module docstring for the world's construction.
 
     Args:
-        track_segment: a piece of a real track (:func:`~heatpf_jax.sim.tracks.segments`), pitch metres.
+        track_segment: a piece of a real track (:func:`~heatpf_jax.sim.tracks_pieces.segments`), pitch metres.
         seed: non-negative integer; draws the camera, the head's lag, the placement, the walking
             limits and all noise.
         scale: factor applied to positions and heights (1/8: a pitch to a KidSize field).
@@ -374,7 +374,7 @@ def replay_segments(
             ``"pff"`` (two World Cup samples with heights: pieces of 0.8 s at most, so pass a small
             ``min_length_s``).
         min_length_s: pieces shorter than this are left out.
-        max_gap_s: the longest gap bridged inside a piece (:func:`~heatpf_jax.sim.tracks.segments`).
+        max_gap_s: the longest gap bridged inside a piece (:func:`~heatpf_jax.sim.tracks_pieces.segments`).
         max_speed: a faster jump (m/s, unscaled: a tracking glitch) starts a new piece; ``None``: no limit.
         cache_dir: see :func:`~heatpf_jax.sim.tracks.fetch_kloppy_files`.
 

@@ -20,7 +20,7 @@ _WIDTH = 72
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
-    from heatpf_jax.cli import _build_parser
+    from heatpf_jax.cli.parser import _build_parser
 
     actions = [a for a in _build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     return dict(actions[0].choices)

@@ -16,7 +16,23 @@ import warnings
 from pathlib import Path
 
 PATH = Path(__file__).with_name("public_api.json")
-MODULES = ("heatpf_jax", "heatpf_jax.sim", "heatpf_jax.baselines")
+MODULES = (
+    "heatpf_jax",
+    "heatpf_jax.sim",
+    "heatpf_jax.baselines",
+    "heatpf_jax.motion",
+    "heatpf_jax.sources",
+    "heatpf_jax.buffers",
+    "heatpf_jax.observation",
+    "heatpf_jax.estimate",
+    "heatpf_jax.resampling",
+    "heatpf_jax.injection",
+    "heatpf_jax.memory",
+    "heatpf_jax.colour",
+    "heatpf_jax.io",
+    "heatpf_jax.camera",
+    "heatpf_jax.measurements",
+)
 
 
 def public(module_name: str, name: str):
@@ -56,7 +72,16 @@ def snapshot() -> dict:
 
 
 def main() -> None:
-    entries = sorted(snapshot().items())
+    current = snapshot()
+    if PATH.exists():  # a name in its deprecation period left ``__all__`` but keeps its promise until removed
+        for key, value in json.loads(PATH.read_text()).items():
+            module_name, name = key.split(":")
+            try:
+                public(module_name, name)
+            except AttributeError:
+                continue
+            current.setdefault(key, value)
+    entries = sorted(current.items())
     lines = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in entries]  # one line per name
     PATH.write_text("{\n" + ",\n".join(lines) + "\n}\n")
     print(f"wrote {PATH}")

@@ -2,7 +2,7 @@
 
 The pins replace float hashes, which fix one CPU's rounding of trigonometry rather than the scenario. They hold
 the small arrays whole (ground truth, odometry, camera pose, heat-map flags) and the heat maps as row and
-column sums for every step plus three whole maps (float16); ``tests/test_sim_scenarios.py`` compares them
+column sums for every step plus three whole maps (float16); ``tests/sim/test_scenarios.py`` compares them
 with tolerances far above float32 noise and far below any change of the scenario. Regenerate only for an
 intended change of a scenario: ``python -m tests.data.scenario_pins``.
 """

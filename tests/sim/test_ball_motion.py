@@ -1,7 +1,7 @@
 """Ball motion: rolling friction, bounces off robots, lofts, pushes, stills, regions, kicked_hidden.
 
 References: brute-force Euler integration on 0.1 ms steps (rolling, bouncing off a circle, flying with
-bounces), the closed forms of a constant deceleration, and ``heatpf_jax.sim.world.fits_in_view``.
+bounces), the closed forms of a constant deceleration, and ``heatpf_jax.sim.world_paths.fits_in_view``.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from heatpf_jax.sim.ball_motion import (
     view_region,
     wander_path,
 )
-from heatpf_jax.sim.world import fits_in_view
+from heatpf_jax.sim.world_paths import fits_in_view
 
 DT = 0.1
 BIG = box_region((0.5, 12.0), 6.0)
@@ -168,7 +168,7 @@ def test_stills_last_their_time_and_a_stopped_ball_never_moves():
 
 def test_view_region_is_in_view_and_paths_stay_in_it():
     rng = np.random.default_rng(9)
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     region = view_region(INTRINSICS, cam, (150, 200), x_range=(0.2, 6.5), radius=0.075, fill=1.0)
     assert region.x[0] > 0.4  # the near end is cut where the ball does not fit
     points = [region.sample(rng) for _ in range(200)]

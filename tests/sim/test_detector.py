@@ -1,7 +1,7 @@
 """The randomised detector: the sphere's outline, blob placement, smoothing, background, factor draws.
 
-References: the outline against the projection (``hp.project_points``) of the sphere's circle of tangency,
-built in 3D; the blob's place against ``hp.project_points`` of the centre; smoothing against
+References: the outline against the projection (``hp.camera.project_points``) of the sphere's circle of tangency,
+built in 3D; the blob's place against ``hp.camera.project_points`` of the centre; smoothing against
 ``scipy.ndimage.gaussian_filter``; the clutter's correlation against the Gaussian kernel's
 autocorrelation ``exp(-d^2 / (4 sigma^2))``.
 """
@@ -33,7 +33,7 @@ CLEAN = DetectorFactors(noise=0.0, peak=1.0)
 
 
 def _camera(rng: np.random.Generator) -> np.ndarray:
-    return hp.camera_pose(height=rng.uniform(0.45, 0.75), pitch=np.deg2rad(rng.uniform(15.0, 40.0)),
+    return hp.camera.camera_pose(height=rng.uniform(0.45, 0.75), pitch=np.deg2rad(rng.uniform(15.0, 40.0)),
                           roll=np.deg2rad(rng.uniform(-3.0, 3.0)))
 
 
@@ -41,7 +41,7 @@ def _ball_in_view(rng, cam, radius: float, max_height: float = 0.0) -> np.ndarra
     """A sphere centre (up to ``max_height`` above the ground) whose projection lies well inside the image."""
     for _ in range(1000):
         centre = np.array([rng.uniform(0.6, 5.0), rng.uniform(-2.5, 2.5), radius + rng.uniform(0.0, max_height)])
-        uv, depth = hp.project_points(centre[None], INTRINSICS, cam)
+        uv, depth = hp.camera.project_points(centre[None], INTRINSICS, cam)
         u, v = np.asarray(uv)[0]
         if float(depth[0]) > 0.3 and 15 <= u <= SHAPE[1] - 16 and 15 <= v <= SHAPE[0] - 16:
             return centre
@@ -70,7 +70,7 @@ def test_outline_is_the_projected_silhouette(radius):
         cam = _camera(rng)
         centre = _ball_in_view(rng, cam, radius)
         c, s = sphere_outline(centre, radius, INTRINSICS, cam)
-        uv, _ = hp.project_points(_tangent_circle(centre, radius, cam[:3, 3]), INTRINSICS, cam)
+        uv, _ = hp.camera.project_points(_tangent_circle(centre, radius, cam[:3, 3]), INTRINSICS, cam)
         d = np.asarray(uv, np.float64) - c
         np.testing.assert_allclose(np.einsum("ni,ij,nj->n", d, s, d), 1.0, atol=2e-4)
 
@@ -107,7 +107,7 @@ def test_blob_lies_where_the_centre_projects(shape_name):
                                  size_scale=rng.uniform(0.8, 1.3), saturation=rng.uniform(0.0, 4.0),
                                  blur_px=rng.uniform(0.0, 1.5))
         heat = render_frame(rng, [SceneObject(centre, 0.075, 1.0)], INTRINSICS, cam, SHAPE, factors)
-        uv = np.asarray(hp.project_points(centre[None], INTRINSICS, cam)[0])[0]
+        uv = np.asarray(hp.camera.project_points(centre[None], INTRINSICS, cam)[0])[0]
         vv, uu = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]]
         w = np.where(heat > 0.5 * heat.max(), heat, 0.0)
         centroid = np.array([(w * uu).sum(), (w * vv).sum()]) / w.sum()
@@ -122,7 +122,7 @@ def test_defaults_are_the_fixed_renderer():
 
     (Off the axis the outline's perspective elongation makes them differ: it is what the detector adds.)
     """
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     for xy in [(1.0, 0.0), (1.2, 0.1), (0.95, -0.1)]:
         centre = np.array([*xy, 0.075])
         ours = object_blob(SceneObject(centre, 0.075, 0.9), INTRINSICS, cam, SHAPE, DetectorFactors())
@@ -130,7 +130,7 @@ def test_defaults_are_the_fixed_renderer():
 
 
 def test_disc_is_filled_and_saturation_flattens():
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     obj = SceneObject(np.array([1.0, 0.2, 0.075]), 0.075, 0.8)
     disc = object_blob(obj, INTRINSICS, cam, SHAPE, CLEAN._replace(blob_shape="disc"))
     c, s = sphere_outline(obj.centre, obj.radius, INTRINSICS, cam)
@@ -145,7 +145,7 @@ def test_disc_is_filled_and_saturation_flattens():
 
 
 def test_occluders_hide_a_band_or_a_half():
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     centre = np.array([0.9, 0.0, 0.075])
     whole = object_blob(SceneObject(centre, 0.075, 1.0), INTRINSICS, cam, SHAPE, CLEAN)
     band = object_blob(SceneObject(centre, 0.075, 1.0, occluder=Occluder(0.0, 0.0, 0.4)), INTRINSICS, cam, SHAPE,
@@ -164,7 +164,7 @@ def test_occluders_hide_a_band_or_a_half():
 
 
 def test_objects_behind_or_at_the_camera_are_not_drawn():
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     behind = SceneObject(np.array([-1.0, 0.0, 0.075]), 0.075, 1.0)
     inside = SceneObject(cam[:3, 3] + np.array([0.05, 0.0, 0.0]), 0.075, 1.0)
     for obj in (behind, inside):
@@ -196,7 +196,7 @@ def test_frame_is_float32_in_unit_range_with_every_artefact():
     factors = DetectorFactors(blob_shape="disc", saturation=3.0, blur_px=1.2, peak=1.0, dropout=0.2, noise=0.06,
                               clutter_strength=0.3, clutter_length_px=5.0, speckle_density=0.002, speckle_peak=1.0,
                               line_rate=0.03, line_strength=0.15)
-    cam = hp.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
+    cam = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     objects = [SceneObject(np.array([1.5, 0.0, 0.075]), 0.075, 1.0),
                SceneObject(np.array([3.0, 0.5, 0.3]), 0.3, 0.7, "false_positive")]
     heat = render_frame(rng, objects, INTRINSICS, cam, SHAPE, factors)

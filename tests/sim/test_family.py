@@ -1,6 +1,6 @@
 """The world family: determinism, the factors' documented ranges, and what each factor promises.
 
-References: ``hp.project_points`` of the ball's 3D centre with the true camera pose (where its blob must be),
+References: ``hp.camera.project_points`` of the ball's 3D centre with the true camera pose (where its blob must be),
 the rotation angle ``arccos((tr(R_g^T R_t) - 1) / 2)`` between the sequence's and the true camera
 (the calibration error), the world-to-base transform written out here (the ground truth), and the
 documented ranges of :mod:`heatpf_jax.sim.family` (every factor over 30 seeds).
@@ -45,7 +45,7 @@ def _ball_uv(seq, info, t: int) -> tuple[np.ndarray, float]:
     s = info["render_step"][t]
     centre = np.r_[seq.ground_truth[s], float(seq.ball_radius) + info["ball_height"][s]]
     cam = info["true_cam_to_base"][s]
-    uv, depth = hp.project_points(centre[None], seq.intrinsics, cam)
+    uv, depth = hp.camera.project_points(centre[None], seq.intrinsics, cam)
     return np.asarray(uv, np.float64)[0], float(seq.intrinsics[0]) * float(seq.ball_radius) / float(depth[0])
 
 
@@ -228,7 +228,7 @@ def test_latency_shows_an_earlier_world():
     for t in moving:
         assert info["render_step"][t] == t - 2
         uv, _ = _ball_uv(seq, info, t)
-        now, _ = hp.project_points(np.r_[seq.ground_truth[t], float(seq.ball_radius)][None], seq.intrinsics,
+        now, _ = hp.camera.project_points(np.r_[seq.ground_truth[t], float(seq.ball_radius)][None], seq.intrinsics,
                                    info["true_cam_to_base"][t])
         centroid, _ = _centroid(seq.heatmaps[t])
         assert np.linalg.norm(centroid - uv) < 1.0
@@ -268,7 +268,7 @@ def test_lofted_ball_is_drawn_at_its_3d_place_and_larger_than_on_the_ground():
         assert centroid[1] < _centroid(at_ground)[0][1] - 1.0
         if np.linalg.norm(air - cam[:3, 3]) < 0.95 * np.linalg.norm(ground - cam[:3, 3]):
             assert seq.heatmaps[t].sum() > at_ground.sum()  # the blob's mass grows with its area
-        ray_xy, ok = hp.project_pixel(uv, seq.intrinsics, cam, radius)
+        ray_xy, ok = hp.camera.project_pixel(uv, seq.intrinsics, cam, radius)
         if bool(ok):  # (a ball above the camera is seen above the horizon: no ray meets the ground)
             along_ray = draw(np.r_[np.asarray(ray_xy, np.float64), radius])
             assert np.linalg.norm(_centroid(along_ray)[0] - centroid) < 1.0
@@ -303,7 +303,7 @@ def test_kicked_hidden_hides_the_ball_exactly_in_its_windows_with_distractors_on
                 np.testing.assert_array_equal(on[:, c], expect)
         # The heat maps show each distractor exactly where it is on (the ball far from it).
         for m, place in enumerate(info["distractor_world"]):
-            uv, _ = hp.project_points(np.r_[place, float(seq.ball_radius)][None], seq.intrinsics,
+            uv, _ = hp.camera.project_points(np.r_[place, float(seq.ball_radius)][None], seq.intrinsics,
                                       info["true_cam_to_base"][0])
             u, v = np.round(np.asarray(uv)[0]).astype(int)
             for t in np.flatnonzero(seq.has_heatmap):

@@ -19,9 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from heatpf_jax import project_points
-from heatpf_jax.camera import camera_pose
-from heatpf_jax.sequence import validate_sequence
+from heatpf_jax.camera import camera_pose, project_points
+from heatpf_jax.io.sequence import validate_sequence
 from heatpf_jax.sim import integrate_odometry
 from heatpf_jax.sim import tracks as tracks_module
 from heatpf_jax.sim.render import BALL_RADIUS, blob

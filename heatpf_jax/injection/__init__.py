@@ -1,0 +1,62 @@
+"""Injection: new particles among the resampled ones (III-E; Olufs 3.4).
+
+* :mod:`~heatpf_jax.injection.explorers`: the paper's explorers and random particles;
+* :mod:`~heatpf_jax.injection.measurement_explorers`: explorers drawn at measurements;
+* :mod:`~heatpf_jax.injection.memory_hints`: hint particles and re-detection seeds from the memory.
+"""
+
+from heatpf_jax.injection.explorers import (
+    ExplorerParams,
+    GaussianExplorerParams,
+    GaussianExplorers,
+    InjectionContext,
+    RandomParams,
+    RandomParticles,
+    UniformBox,
+    UniformExplorers,
+    explorer_count,
+    explorer_mask,
+    explorer_slots,
+    refill,
+    replace_slots,
+    spawn_gaussian,
+    spawn_uniform,
+    take_slots,
+)
+from heatpf_jax.injection.measurement_explorers import (
+    MeasurementExplorers,
+    MeasurementParams,
+    sample_measurements,
+)
+from heatpf_jax.injection.memory_hints import (
+    HintParams,
+    MemoryHints,
+    RedetectionSeeds,
+    SeedParams,
+)
+
+__all__ = [
+    "ExplorerParams",
+    "GaussianExplorerParams",
+    "GaussianExplorers",
+    "HintParams",
+    "InjectionContext",
+    "MeasurementExplorers",
+    "MeasurementParams",
+    "MemoryHints",
+    "RandomParams",
+    "RandomParticles",
+    "RedetectionSeeds",
+    "SeedParams",
+    "UniformBox",
+    "UniformExplorers",
+    "explorer_count",
+    "explorer_mask",
+    "explorer_slots",
+    "refill",
+    "replace_slots",
+    "sample_measurements",
+    "spawn_gaussian",
+    "spawn_uniform",
+    "take_slots",
+]

@@ -1,0 +1,313 @@
+"""A measurement source for balls in the air: a blob larger than a ground ball there is placed by its size.
+
+The paper's projection (III-A) puts every pixel on the plane ``z = R`` (the ball radius): right for a ball on
+the ground, metres wrong for a chip or a lob. A ball of radius ``R`` seen with an apparent radius of ``rho``
+pixels lies at the optical depth ``d = f R / rho`` along its pixel's ray; a ball lying on the ground where the
+ray meets the plane (optical depth ``d_g``) would look ``rho_g = f R / d_g`` pixels large. A ball in the air
+is nearer than the ground point its ray meets, so its blob is larger than a ground ball's there by the factor
+
+    q = rho / rho_g = d_g / d  (> 1 in the air; about 1 on the ground),
+
+and above the horizon, where the ray meets no ground, ``q`` is infinite. :class:`LoftedSource` measures each
+blob's apparent size and:
+
+* keeps every pixel of a blob with ``q <= min_ratio`` where it lies on the plane (the paper's source,
+  :class:`~heatpf_jax.sources.pixels.PixelSource`: a ball on the ground, or a blob too small or too soft to tell);
+* moves every pixel of a blob with ``q > min_ratio`` (a ball in the air, or above the horizon) to the ground
+  point under the ball: the point at optical depth ``f R / rho`` along the ray through the blob's centroid,
+  dropped to the ground, ``(x, y)``. The filter keeps tracking the ground point under the ball, as its
+  estimate must; a flying ball's ground point moves on a straight line at the flight's horizontal speed.
+
+The apparent size comes from the blob's activation mass: for a blob ``h(u) = p exp(-|u - c|^2 / 2 s^2)`` the
+activation summed over the pixels at or above the threshold ``t`` is ``M = 2 pi s^2 (p - t)``, whatever the
+peak ``p``, so ``s = sqrt(M / (2 pi (p - t)))`` and ``rho = s / blob_scale``, with ``blob_scale`` the
+detector's blob std per apparent radius (0.6 for :func:`heatpf_jax.sim.render.blob`). ``M``, the centroid and
+the peak come from an adaptive mean shift over summed-area tables
+(:func:`~heatpf_jax.sources.image_centroids.summed_area`): each above-threshold pixel's window starts as large as a
+ground ball's blob at that pixel and grows with the blob's size estimate (``reach`` stds), up to
+``max_half_px`` pixels.
+
+The size is only as good as the detector's blob: ``blob_scale`` is a calibration constant of the detector, as
+the intrinsics are of the camera. A soft, blurred or saturated blob looks larger than ``blob_scale`` says, and a
+camera whose pitch is off by a degree or two projects a distant ground ball farther than it is (so that it too
+looks too large for its projection); on the world family (:mod:`heatpf_jax.sim.family`), whose detector's blob
+std ranges over 0.3-1.2 apparent radii and whose calibration is 1-3 degrees off, ground balls show ratios from
+below 0.1 to above 4, and this source with one fixed ``blob_scale`` misplaces them: it is therefore not a
+default, but ``FilterOptions(source="lofted")`` (``--set source=lofted``). Every function here is pure and
+jittable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from heatpf_jax.camera import ground_jacobian, project_pixel, project_points
+from heatpf_jax.measurements import Measurements, downscale_heatmap
+from heatpf_jax.params import Param, interval, positive, unit_interval
+from heatpf_jax.pieces import StepInputs
+from heatpf_jax.sources.image_centroids import ball_radius_px, box_sums, summed_area
+
+__all__ = ["BlobSizes", "LoftedParams", "LoftedSource", "air_points", "blob_sizes", "bright_pixels"]
+
+_MIN_STD_PX = 0.7  # a blob is never thinner than this (pixel quantisation)
+PEAK_RADIUS_PX = 3  # a blob's peak is the largest activation this close to its centroid
+
+
+class LoftedParams(NamedTuple):
+    """Numbers of :class:`LoftedSource`.
+
+    Attributes:
+        threshold: minimum heat-map activation of a measured pixel (III-A).
+        max_distance: measurements farther from the robot (horizontal) are dropped, metres.
+        blob_scale: the detector's blob std per apparent ball radius (0.6 for the simulator's Gaussian blob).
+        min_ratio: a blob whose apparent radius exceeds a ground ball's at its ray's ground point by more than
+            this factor is a ball in the air (``inf``: never; the source is then the paper's). 1.25 (a ball about
+            0.1 m up at 3 m): chosen among 1.15, 1.25 and 1.5 by the worst case over development replays (16
+            SkillCorner pieces of 10-30 s, seeds 1000-1015, static and walking robot, heights kept and flat);
+            the simulator's ground balls give ratios 0.95-1.13 (5-95 %).
+        max_ratio: a blob larger than this factor times a ground ball there (or above the horizon, where the
+            factor is infinite) is refused: its pixels give no measurement. ``inf`` places every ball in the air
+            by its size; ``max_ratio = min_ratio`` refuses every blob it would place (refusing to follow the
+            inconsistent projection, for a detector whose blob size is not known).
+        reach: the mean-shift window's half-size in blob stds.
+        max_half_px: the largest window half-size, pixels.
+    """
+
+    threshold: float = 0.3
+    max_distance: float = 12.0
+    blob_scale: float = 0.6
+    min_ratio: float = 1.25
+    max_ratio: float = float("inf")
+    reach: float = 3.0
+    max_half_px: float = 24.0
+
+
+class BlobSizes(NamedTuple):
+    """Each start pixel's blob, as the adaptive mean shift found it.
+
+    Attributes:
+        uv: ``[M, 2]`` (column, row) of the blob's activation centroid.
+        std_px: ``[M]`` the blob's std, pixels (``sqrt(M / (2 pi (p - t)))``).
+        peak: ``[M]`` the largest activation within ``PEAK_RADIUS_PX`` pixels of the centroid.
+        ground_radius_px: ``[M]`` a ground ball's radius at the centroid, pixels (0 above the horizon).
+    """
+
+    uv: Float[Array, "m 2"]
+    std_px: Float[Array, " m"]
+    peak: Float[Array, " m"]
+    ground_radius_px: Float[Array, " m"]
+
+
+def blob_sizes(
+    heatmap: Float[ArrayLike, "h w"],
+    start: Float[ArrayLike, "m 2"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    *,
+    threshold: Float[ArrayLike, ""],
+    plane_height: Float[ArrayLike, ""],
+    blob_scale: Float[ArrayLike, ""] = 0.6,
+    reach: Float[ArrayLike, ""] = 3.0,
+    max_half_px: Float[ArrayLike, ""] = 24.0,
+    iterations: int = 4,
+) -> BlobSizes:
+    """Centroid and std of each start pixel's blob: a mean shift whose window grows with the blob.
+
+    The window's half-size is ``reach`` times the larger of the blob std a ground ball would have at the window's
+    centre (``blob_scale`` times its radius in pixels) and the std measured in the previous window, clipped to
+    ``[1, max_half_px]``. In each window the centroid and the std ``sqrt(M / (2 pi (p - t)))`` are taken over the
+    activations at or above ``threshold`` (``M`` their sum, ``p`` the largest activation within ``PEAK_RADIUS_PX``
+    pixels of the centroid).
+
+    Args:
+        heatmap: ``[H, W]`` activations.
+        start: ``[M, 2]`` start pixels (column, row).
+        intrinsics: ``(fx, fy, cx, cy)``.
+        cam_to_base: ``[4, 4]`` camera pose in the base frame.
+        threshold: activations below it are not part of a blob.
+        plane_height: the ball radius, metres.
+        blob_scale: the detector's blob std per apparent ball radius.
+        reach: the window's half-size in blob stds.
+        max_half_px: the largest window half-size, pixels.
+        iterations: static number of mean-shift steps.
+
+    Returns:
+        :class:`BlobSizes`.
+    """
+    heat = jnp.asarray(heatmap, jnp.float32)
+    h, w = heat.shape
+    above = heat >= threshold
+    mass_map = jnp.where(above, heat, 0.0)
+    cols = jnp.arange(w, dtype=jnp.float32)[None, :]
+    rows = jnp.arange(h, dtype=jnp.float32)[:, None]
+    s_mass, s_u, s_v = summed_area(mass_map), summed_area(mass_map * cols), summed_area(mass_map * rows)
+    margin = jnp.maximum(jnp.max(heat) - threshold, 1e-3)
+    # The blob's peak: the largest activation within PEAK_RADIUS_PX of its centroid (the centroid of a blob split by
+    # an occluder lies in the gap; that of a small blob between pixel centres).
+    size = 2 * PEAK_RADIUS_PX + 1
+    local_peak = lax.reduce_window(heat, -jnp.inf, lax.max, (size, size), (1, 1), "SAME")
+
+    def measure(uv, std):
+        ground = blob_scale * ball_radius_px(uv, intrinsics, cam_to_base, plane_height)
+        half = jnp.clip(jnp.round(reach * jnp.maximum(jnp.maximum(ground, std), _MIN_STD_PX)), 1.0, max_half_px)
+        u0 = jnp.clip(jnp.round(uv[:, 0] - half), 0, w - 1).astype(jnp.int32)
+        u1 = jnp.clip(jnp.round(uv[:, 0] + half), 0, w - 1).astype(jnp.int32)
+        v0 = jnp.clip(jnp.round(uv[:, 1] - half), 0, h - 1).astype(jnp.int32)
+        v1 = jnp.clip(jnp.round(uv[:, 1] + half), 0, h - 1).astype(jnp.int32)
+        m = box_sums(s_mass, u0, u1, v0, v1)
+        has = m > 0.0
+        safe = jnp.where(has, m, 1.0)
+        centre = jnp.where(has[:, None], jnp.stack([box_sums(s_u, u0, u1, v0, v1) / safe,
+                                                   box_sums(s_v, u0, u1, v0, v1) / safe], axis=-1), uv)
+        iu = jnp.clip(jnp.round(centre[:, 0]), 0, w - 1).astype(jnp.int32)
+        iv = jnp.clip(jnp.round(centre[:, 1]), 0, h - 1).astype(jnp.int32)
+        peak = local_peak[iv, iu]
+        denom = jnp.clip(peak - threshold, 0.05 * margin, None)
+        std = jnp.sqrt(m / (2.0 * math.pi * denom))
+        return centre, jnp.where(has, std, 0.0), peak
+
+    uv = jnp.asarray(start, jnp.float32)
+    std = jnp.zeros(uv.shape[0], jnp.float32)
+    peak = jnp.zeros(uv.shape[0], jnp.float32)
+    for _ in range(int(iterations)):
+        uv, std, peak = measure(uv, std)
+    ground = ball_radius_px(uv, intrinsics, cam_to_base, plane_height)
+    return BlobSizes(uv=uv, std_px=std, peak=peak, ground_radius_px=ground)
+
+
+def air_points(
+    uv: Float[ArrayLike, "m 2"],
+    radius_px: Float[ArrayLike, " m"],
+    intrinsics: Float[ArrayLike, "4"],
+    cam_to_base: Float[ArrayLike, "4 4"],
+    ball_radius: Float[ArrayLike, ""],
+) -> tuple[Float[Array, "m 3"], Bool[Array, " m"]]:
+    """The centre of a ball of radius ``ball_radius`` seen at pixel ``uv`` with an apparent radius ``radius_px``.
+
+    The centre lies along the pixel's ray at the optical depth ``fx R / rho``.
+
+    Args:
+        uv: ``[M, 2]`` blob centres (column, row).
+        radius_px: ``[M]`` apparent radii, pixels.
+        intrinsics: ``(fx, fy, cx, cy)``.
+        cam_to_base: ``[4, 4]`` camera pose in the base frame.
+        ball_radius: metres.
+
+    Returns:
+        ``(points [M, 3], ok [M])``: base-frame centres, and whether the radius is positive and finite.
+    """
+    uv = jnp.asarray(uv, jnp.float32)
+    intrinsics = jnp.asarray(intrinsics, jnp.float32)
+    pose = jnp.asarray(cam_to_base, jnp.float32)
+    radius_px = jnp.asarray(radius_px, jnp.float32)
+    ok = (radius_px > 0.0) & jnp.isfinite(radius_px)
+    depth = intrinsics[0] * ball_radius / jnp.where(ok, radius_px, 1.0)
+    ray = jnp.stack([(uv[:, 0] - intrinsics[2]) / intrinsics[0], (uv[:, 1] - intrinsics[3]) / intrinsics[1],
+                     jnp.ones_like(uv[:, 0])], axis=-1)
+    points = pose[:3, 3][None, :] + (depth[:, None] * ray) @ pose[:3, :3].T
+    return jnp.where(ok[:, None], points, 0.0), ok
+
+
+def bright_pixels(
+    heatmap: Float[ArrayLike, "h w"], *, threshold: Float[ArrayLike, ""], max_measurements: int
+) -> tuple[Float[Array, "k 2"], Bool[Array, " k"], Float[Array, " k"]]:
+    """The strongest pixels at or above ``threshold``, wherever their rays go (above the horizon too).
+
+    Returns:
+        ``(uv, passes, activation)`` each of ``k = min(max_measurements, H W)`` entries, in raster order, passing
+        ones first (as :func:`~heatpf_jax.measurements.strongest_pixels`, without its test of the ray).
+    """
+    heat = jnp.asarray(heatmap, jnp.float32)
+    h, w = heat.shape
+    n_pix = h * w
+    act = heat.ravel()
+    passes = act >= threshold
+    k = min(int(max_measurements), n_pix)
+    _, idx = lax.top_k(jnp.where(passes, act, -1.0), k)
+    idx = jnp.sort(jnp.where(passes[idx], idx, idx + n_pix)) % n_pix
+    uv = jnp.stack([(idx % w).astype(jnp.float32), (idx // w).astype(jnp.float32)], axis=-1)
+    return uv, passes[idx], act[idx]
+
+
+@dataclass(frozen=True)
+class LoftedSource:
+    """Every pixel at or above ``threshold``: on the ground plane, or under its ball when its blob is a ball in the air.
+
+    See the module docstring. A blob no larger than ``min_ratio`` times a ground ball there gives exactly the
+    paper's measurements (:class:`~heatpf_jax.sources.pixels.PixelSource`); a larger blob, or one above the horizon,
+    gives the ground point under the ball its size places along the ray through its centroid, for each of its
+    pixels, with the pixel's own activation as its weight and the footprint of a ground ball's pixel there.
+
+    Attributes:
+        max_measurements: slots; the strongest pixels are kept (IV-E).
+        downscale: integer block-averaging of the heat map first (III-A).
+        iterations: mean-shift steps of :func:`blob_sizes`.
+    """
+
+    max_measurements: int = 1024
+    downscale: int = 1
+    iterations: int = 4
+
+    @property
+    def size(self) -> int:
+        return self.max_measurements
+
+    def default_params(self) -> LoftedParams:
+        return LoftedParams()
+
+    def properties(self) -> LoftedParams:
+        # Each acts through which pixels count or where a window ends: frozen, swept rather than tuned.
+        return LoftedParams(
+            threshold=unit_interval(trainable=False),
+            max_distance=positive(trainable=False, allow_inf=True),
+            blob_scale=positive(trainable=False),
+            min_ratio=Param(low=1.0, trainable=False, allow_inf=True),
+            max_ratio=Param(low=1.0, trainable=False, allow_inf=True),
+            reach=positive(trainable=False),
+            max_half_px=interval(1.0, math.inf, trainable=False),
+        )
+
+    def validate(self) -> None:
+        for name in ("max_measurements", "downscale", "iterations"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+
+    def measure(self, inputs: StepInputs, params: LoftedParams) -> Measurements:
+        heatmap, intrinsics = downscale_heatmap(inputs.heatmap, inputs.intrinsics, self.downscale)
+        pose, radius = inputs.cam_to_base, inputs.plane_height
+        uv, passes, weight = bright_pixels(heatmap, threshold=params.threshold, max_measurements=self.max_measurements)
+        blobs = blob_sizes(heatmap, uv, intrinsics, pose, threshold=params.threshold, plane_height=radius,
+                           blob_scale=params.blob_scale, reach=params.reach, max_half_px=params.max_half_px,
+                           iterations=self.iterations)
+        apparent = blobs.std_px / params.blob_scale
+        in_air = apparent > params.min_ratio * blobs.ground_radius_px  # above the horizon: ground radius 0
+        refused = apparent > params.max_ratio * blobs.ground_radius_px
+        centres, sized = air_points(blobs.uv, apparent, intrinsics, pose, radius)
+        air_xy = centres[:, :2]
+        on_plane = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))
+        plane_xy, plane_ok = on_plane(uv, intrinsics, pose, radius, params.max_distance)
+        air_dist = jnp.sqrt(jnp.sum(jnp.square(air_xy), axis=-1))
+        air_ok = sized & (air_dist <= params.max_distance) & jnp.all(jnp.isfinite(air_xy), axis=-1)
+        # The footprint of a ground ball's pixel under the ball (for range-aware observation models).
+        ground_uv, depth = project_points(jnp.concatenate([air_xy, jnp.broadcast_to(radius, air_xy[:, :1].shape)],
+                                                          axis=-1), intrinsics, pose)
+        air_ok = air_ok & (depth > 0.0) & ~refused
+        look_uv = jnp.where(in_air[:, None], ground_uv, uv)
+        footprint = jax.vmap(ground_jacobian, in_axes=(0, None, None, None))(look_uv, intrinsics, pose, radius)
+        xy = jnp.where(in_air[:, None], air_xy, plane_xy)
+        valid = passes & jnp.where(in_air, air_ok, plane_ok)
+        pad = int(self.max_measurements) - uv.shape[0]
+        return Measurements(
+            xy=jnp.pad(jnp.where(valid[:, None], xy, 0.0), ((0, pad), (0, 0))),
+            weight=jnp.pad(jnp.where(valid, weight, 0.0), (0, pad)),
+            valid=jnp.pad(valid, (0, pad)),
+            footprint=jnp.pad(jnp.where(valid[:, None, None], footprint, 0.0), ((0, pad), (0, 0), (0, 0))),
+        )

@@ -1,0 +1,144 @@
+"""``heatpf colour``: a sequence's RGB frames into colour-likelihood heat maps; every argument checked first."""
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from heatpf_jax.cli import main
+from heatpf_jax.cli.colour import colour_sequence
+from heatpf_jax.io.sequence import load_sequence, save_sequence
+from heatpf_jax.sim import simulate
+from heatpf_jax.sim.render import project_centre
+from heatpf_jax.sim.scenarios import simulate_with_info
+
+
+@pytest.fixture(scope="module")
+def rgb_file(tmp_path_factory):
+    seq = simulate("standard", 0, num_steps=4, shrink=4, rgb=True)
+    path = tmp_path_factory.mktemp("rgb") / "in.npz"
+    save_sequence(path, seq)
+    return path, seq
+
+
+def _error(capsys) -> str:
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
+    path, seq = rgb_file
+    out = tmp_path / "colour.npz"
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    got = load_sequence(out)
+    want, ref = colour_sequence(seq, box=(20, 10, 4, 4), frame=1)
+    np.testing.assert_allclose(got.heatmaps, want.heatmaps, atol=1e-6)
+    np.testing.assert_array_equal(got.images, seq.images)
+    np.testing.assert_array_equal(got.ground_truth, seq.ground_truth)
+    assert (f"reference: the object's box {','.join(map(str, ref.box))} in frame 1 (from the box 20,10,4,4); "
+            f"background: the ring around it in frame 1; ") in printed
+    assert f"its own score {ref.score:.3f}" in printed and "compilation" in printed and "ms a frame" in printed
+    before = out.read_bytes()
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(out)]) == 2
+    assert "--output" in _error(capsys) and out.read_bytes() == before  # never replaced without --force
+
+
+def _ball_box(seq, t, scale, offset):
+    """A user's box in frame ``t``: ``scale`` times the ball's diameter, moved by ``offset`` of it down and right."""
+    u, v, depth = project_centre(np.array([*seq.ground_truth[t], float(seq.ball_radius)]), seq.intrinsics,
+                                 seq.cam_to_base[t])
+    side = 2 * scale * float(seq.intrinsics[0]) * float(seq.ball_radius) / depth
+    return int(round(u - side / 2 + offset * side)), int(round(v - side / 2 + offset * side)), round(side), round(side)
+
+
+@pytest.fixture(scope="module")
+def full_size(tmp_path_factory):
+    seq, info = simulate_with_info("standard", 1, num_steps=40, rgb=True)
+    path = tmp_path_factory.mktemp("full") / "in.npz"
+    save_sequence(path, seq)
+    return path, seq, info["visible"]
+
+
+def test_a_users_box_at_the_default_threshold(tmp_path, full_size, capsys):
+    """A box 30 % larger than the ball and off-centre by a quarter of it, taken as a user takes it; the maps are
+    near 1 at the ball and ``heatpf run`` tracks it at its default threshold (no --set); the box saved as an
+    image gives maps that peak at the ball too (its background: the input's frames)."""
+    path, seq, visible = full_size
+    assert visible[0] and visible.mean() > 0.8
+    box = _ball_box(seq, 0, 1.3, 0.25)
+    out = tmp_path / "colour.npz"
+    assert main(["colour", str(path), "--box", ",".join(map(str, box)), "--frame", "0", "-o", str(out)]) == 0
+    heat = load_sequence(out).heatmaps
+    uv = np.array([project_centre(np.array([*g, float(seq.ball_radius)]), seq.intrinsics, c)[:2]
+                   for g, c in zip(seq.ground_truth, seq.cam_to_base, strict=True)])
+    vv, uu = np.mgrid[0:heat.shape[1], 0:heat.shape[2]]
+    near = (uu[None] - uv[:, 0, None, None]) ** 2 + (vv[None] - uv[:, 1, None, None]) ** 2 <= 8.0**2
+    at_ball = np.where(near, heat, 0).max(axis=(1, 2))[visible]
+    assert np.median(at_ball) > 0.8 and at_ball.min() > 0.3, at_ball
+    assert np.where(near, 0, heat).max() < 0.3  # nothing else over the threshold
+    capsys.readouterr()
+    csv = tmp_path / "est.csv"
+    assert main(["run", str(out), "-o", str(csv)]) == 0
+    est = np.loadtxt(csv, delimiter=",", skiprows=1)[:, 1:3]
+    error = np.linalg.norm(est - seq.ground_truth, axis=1)
+    assert error[10:20].mean() < 0.03, error  # the ball in view (it is hidden on steps 20-26 of this seed)
+    x, y, w, h = box
+    Image.fromarray(seq.images[0, y:y + h, x:x + w]).save(tmp_path / "ball.png")
+    out_png = tmp_path / "colour_png.npz"
+    assert main(["colour", str(path), "--reference", str(tmp_path / "ball.png"), "-o", str(out_png)]) == 0
+    assert "background: the input's frames" in capsys.readouterr().out
+    heat_png = load_sequence(out_png).heatmaps
+    assert np.median(np.where(near, heat_png, 0).max(axis=(1, 2))) > 0.8
+
+
+def test_a_box_without_the_object_is_warned_about(tmp_path, full_size, capsys):
+    path, _, _ = full_size
+    assert main(["colour", str(path), "--box", "20,110,14,14", "--frame", "0", "-o", str(tmp_path / "o.npz")]) == 0
+    warning = _error(capsys)
+    assert warning.startswith("heatpf: warning: --box: the reference's own score is low"), warning
+
+
+def test_reference_images_png_and_npy(tmp_path, rgb_file):
+    path, seq = rgb_file
+    patch = seq.images[0, 8:16, 18:26]
+    Image.fromarray(patch).save(tmp_path / "ref.png")
+    np.save(tmp_path / "ref.npy", patch)
+    outs = []
+    for ref in ("ref.png", "ref.npy"):
+        out = tmp_path / f"{ref}.npz"
+        assert main(["colour", str(path), "--reference", str(tmp_path / ref), "-o", str(out)]) == 0
+        outs.append(load_sequence(out).heatmaps)
+    np.testing.assert_array_equal(outs[0], outs[1])  # PNG is lossless
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--box", "20,10,4"], "--box: expected x,y,w,h"),
+    (["--box", "45,10,8,8", "--frame", "0"], "--box: 45,10,8,8 is not inside frame 0"),
+    (["--box", "1,1,4,4", "--frame", "9"], "--frame: must be in [0, 3]"),
+    (["--box", "1,1,4,4"], "--reference: give a reference image"),
+    (["--box", "1,1,4,4", "--frame", "0", "--theta", "1.0"], "--theta: must lie in [0, 1)"),
+    (["--box", "1,1,4,4", "--frame", "0", "--chroma-smoothing", "0.5"], "--chroma-smoothing: must lie in [0, 0.5)"),
+])
+def test_bad_arguments_are_one_line_errors(tmp_path, rgb_file, capsys, args, message):
+    path, _ = rgb_file
+    out = tmp_path / "o.npz"
+    assert main(["colour", str(path), *args, "-o", str(out)]) == 2
+    assert message in _error(capsys) and not out.exists()
+
+
+def test_an_unknown_background_is_a_one_line_usage_error(tmp_path, rgb_file, capsys):
+    path, _ = rgb_file
+    with pytest.raises(SystemExit) as exit_:
+        main(["colour", str(path), "--box", "1,1,4,4", "--frame", "0", "--background", "sky", "-o",
+              str(tmp_path / "o.npz")])
+    assert exit_.value.code == 2
+    assert "argument --background: invalid choice: 'sky'" in _error(capsys)
+
+
+def test_a_sequence_without_images_is_refused(tmp_path, rgb_file, capsys):
+    path, seq = rgb_file
+    plain = tmp_path / "plain.npz"
+    save_sequence(plain, seq._replace(images=None))
+    assert main(["colour", str(plain), "--box", "1,1,4,4", "--frame", "0", "-o", str(tmp_path / "o.npz")]) == 2
+    assert _error(capsys).endswith("images: missing; heatpf colour needs RGB frames (key images, uint8 [T, H, W, 3])")

@@ -1,0 +1,165 @@
+"""LoftedSource: a ball in the air is measured at the ground point under it (NumPy brute-force references)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax.pieces import StepInputs
+from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, air_points, blob_sizes
+
+INTRINSICS = np.array([143.0, 143.0, 99.5, 74.5])
+SHAPE = (150, 200)
+RADIUS = 0.075
+SOURCE = LoftedSource(max_measurements=256)
+MEASURE = jax.jit(SOURCE.measure)  # one compilation for every test here
+
+
+def _pose(height: float, pitch_deg: float, yaw: float = 0.0) -> np.ndarray:
+    """Camera pose (NumPy): optical z forward along the pitched heading, x right, y down."""
+    p, y = np.deg2rad(pitch_deg), yaw
+    forward = np.array([np.cos(p) * np.cos(y), np.cos(p) * np.sin(y), -np.sin(p)])
+    right = np.array([np.sin(y), -np.cos(y), 0.0])
+    down = np.cross(forward, right)
+    pose = np.eye(4)
+    pose[:3, :3] = np.stack([right, down, forward], axis=1)
+    pose[:3, 3] = (0.0, 0.0, height)
+    return pose
+
+
+def _sphere_heatmap(rng, centre: np.ndarray, pose: np.ndarray, peak: float = 0.9, noise: float = 0.02) -> np.ndarray:
+    """A detector's blob of a sphere, by brute force: the pixels whose rays pass within R of the centre (its exact
+    silhouette), then a Gaussian of std 0.6 times the silhouette's equivalent radius at the silhouette's centroid."""
+    h, w = SHAPE
+    vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
+    rays = np.stack([(uu - INTRINSICS[2]) / INTRINSICS[0], (vv - INTRINSICS[3]) / INTRINSICS[1], np.ones_like(uu)], -1)
+    rays = rays @ pose[:3, :3].T
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    to_c = centre - pose[:3, 3]
+    along = rays @ to_c
+    miss = np.linalg.norm(to_c[None, None] - along[..., None] * rays, axis=-1)
+    inside = (miss <= RADIUS) & (along > 0)
+    assert inside.sum() >= 4, "the sphere must be in view"
+    u0, v0 = uu[inside].mean(), vv[inside].mean()
+    rho = np.sqrt(inside.sum() / np.pi)
+    act = peak * np.exp(-0.5 * ((uu - u0) ** 2 + (vv - v0) ** 2) / (0.6 * rho) ** 2)
+    return np.clip(act + noise * rng.standard_normal(SHAPE), 0.0, 1.0).astype(np.float32)
+
+
+def _inputs(heat: np.ndarray, pose: np.ndarray) -> StepInputs:
+    return StepInputs(
+        heatmap=jnp.asarray(heat), has_heatmap=jnp.asarray(True), cam_to_base=jnp.asarray(pose, jnp.float32),
+        odometry=jnp.zeros(3, jnp.float32), intrinsics=jnp.asarray(INTRINSICS, jnp.float32),
+        plane_height=jnp.asarray(RADIUS, jnp.float32), dt=jnp.asarray(0.1, jnp.float32),
+    )
+
+
+def _weighted_xy(m) -> np.ndarray:
+    valid = np.asarray(m.valid)
+    w = np.asarray(m.weight)[valid]
+    return (np.asarray(m.xy)[valid] * w[:, None]).sum(0) / w.sum()
+
+
+@pytest.mark.parametrize(
+    ("ground", "height"),
+    [((2.3, 0.4), 0.35), ((3.4, -0.6), 0.6), ((2.8, 0.2), 1.0)],
+)
+def test_ball_in_the_air_is_measured_under_it(ground, height):
+    """A sphere at a known height: every measurement near the ground point under it, where the ground projection
+    of its blob lies metres behind (or nowhere, above the horizon)."""
+    rng = np.random.default_rng([int(height * 100), 7])
+    pose = _pose(0.6, 12.0 + 3.0 * rng.uniform(), yaw=0.05 * rng.standard_normal())
+    centre = np.array([*ground, height + RADIUS])
+    heat = _sphere_heatmap(rng, centre, pose)
+    m = MEASURE(_inputs(heat, pose), SOURCE.default_params())
+    assert int(np.sum(m.valid)) >= 4
+    # The ground point under the ball, within 8 % of its range (the size gives the range to a few per cent).
+    truth = np.asarray(ground)
+    assert np.linalg.norm(_weighted_xy(m) - truth) < 0.08 * np.linalg.norm(truth)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    if np.any(np.asarray(paper.valid)):  # below the horizon: the paper's projection lies far behind the ball
+        assert np.linalg.norm(_weighted_xy(paper) - truth) > 0.3
+
+
+def test_ball_above_the_horizon_is_measured():
+    rng = np.random.default_rng(3)
+    pose = _pose(0.5, 12.0)
+    ground = np.array([3.0, 0.3])
+    heat = _sphere_heatmap(rng, np.array([*ground, 0.9]), pose)  # centre 0.4 m above the camera
+    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    assert not np.any(np.asarray(paper.valid))  # no ray of the blob meets the ground
+    m = MEASURE(_inputs(heat, pose), SOURCE.default_params())
+    # Within 10 % of the range: the sphere's outline, 20 degrees off the optical axis, is an ellipse 6 % longer
+    # than the round blob of f R / depth that blob_scale describes, so its size puts the ball a little nearer.
+    assert np.linalg.norm(_weighted_xy(m) - ground) < 0.1 * np.linalg.norm(ground)
+    # A finite max_ratio refuses a blob above the horizon (its ratio to a ground ball is infinite).
+    assert not np.any(np.asarray(MEASURE(_inputs(heat, pose), LoftedParams(max_ratio=50.0)).valid))
+
+
+def test_ball_on_the_ground_gives_the_papers_measurements():
+    """Below ``min_ratio`` nothing changes: a ground ball's pixels are the paper's, exactly."""
+    rng = np.random.default_rng(11)
+    pose = _pose(0.55, 30.0, yaw=0.3)
+    for ground in ((1.6, 0.3), (3.5, 1.0)):
+        heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose)
+        inputs = _inputs(heat, pose)
+        m = MEASURE(inputs, SOURCE.default_params())
+        paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+        for field in ("xy", "weight", "valid", "footprint"):
+            np.testing.assert_allclose(np.asarray(getattr(m, field)), np.asarray(getattr(paper, field)), atol=1e-5)
+        assert np.linalg.norm(_weighted_xy(m) - np.asarray(ground)) < 0.05 * np.linalg.norm(ground)
+    # min_ratio = inf never places a blob by its size: a ball in the air then projects behind it, as the paper's
+    # (the same measurements; the slots differ where a pixel's ray meets the ground beyond max_distance).
+    heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), _pose(0.6, 15.0))
+    inputs = _inputs(heat, _pose(0.6, 15.0))
+    never = MEASURE(inputs, LoftedParams(min_ratio=float("inf")))
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    valid_rows = lambda m: np.sort(np.asarray(m.xy)[np.asarray(m.valid)], axis=0)  # noqa: E731
+    assert int(np.sum(never.valid)) == int(np.sum(paper.valid)) > 0
+    np.testing.assert_allclose(valid_rows(never), valid_rows(paper), atol=1e-5)
+    # max_ratio = min_ratio refuses the ball in the air: no measurement, instead of one metres behind it.
+    placed = MEASURE(inputs, LoftedParams())
+    refused = MEASURE(inputs, LoftedParams(max_ratio=1.5))
+    assert np.any(np.asarray(placed.valid)) and not np.any(np.asarray(refused.valid))
+
+
+def test_blob_sizes_recovers_a_gaussian_std():
+    """The mass over the threshold gives the std of a Gaussian blob whatever its peak (NumPy-drawn blobs)."""
+    rng = np.random.default_rng(5)
+    h, w = SHAPE
+    vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
+    pose = _pose(0.6, 30.0)
+    for std, peak in ((1.5, 0.9), (3.0, 0.6), (5.0, 1.0)):
+        u0, v0 = rng.uniform(60, 140), rng.uniform(40, 110)
+        heat = (peak * np.exp(-0.5 * ((uu - u0) ** 2 + (vv - v0) ** 2) / std**2)).astype(np.float32)
+        start = np.array([[round(u0) + 1.0, round(v0)]], np.float32)
+        out = blob_sizes(heat, start, INTRINSICS, pose, threshold=0.3, plane_height=RADIUS)
+        np.testing.assert_allclose(np.asarray(out.uv[0]), [u0, v0], atol=0.1)
+        assert float(out.std_px[0]) == pytest.approx(std, rel=0.1)
+
+
+def test_air_points_inverts_the_projection():
+    """A point at depth d seen with radius f R / d is found again (NumPy projection)."""
+    rng = np.random.default_rng(9)
+    pose = _pose(0.6, 20.0, yaw=-0.4)
+    points = np.stack([rng.uniform(1.0, 5.0, 8), rng.uniform(-1.0, 1.0, 8), rng.uniform(0.1, 1.5, 8)], -1)
+    cam = (points - pose[:3, 3]) @ pose[:3, :3]
+    uv = np.stack([INTRINSICS[0] * cam[:, 0] / cam[:, 2] + INTRINSICS[2],
+                   INTRINSICS[1] * cam[:, 1] / cam[:, 2] + INTRINSICS[3]], -1)
+    found, ok = air_points(uv.astype(np.float32), (INTRINSICS[0] * RADIUS / cam[:, 2]).astype(np.float32),
+                           INTRINSICS, pose, RADIUS)
+    assert np.all(np.asarray(ok))
+    np.testing.assert_allclose(np.asarray(found), points, atol=2e-4)
+    assert not np.any(np.asarray(air_points(uv[:2].astype(np.float32), np.zeros(2, np.float32), INTRINSICS, pose,
+                                            RADIUS)[1]))
+
+
+def test_lofted_source_as_a_filter_option():
+    lofted = hp.build("heatmap", hp.FilterOptions(source="lofted"))
+    assert lofted.model == hp.build("heatmap").model._replace(source=LoftedSource())
+    assert lofted.params.source == LoftedParams()
+    with pytest.raises(ValueError, match="^iterations:"):
+        LoftedSource(iterations=0).validate()
