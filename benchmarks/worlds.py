@@ -9,6 +9,7 @@ each method's mean error to the best other method's (worst world first), which i
     python benchmarks/worlds.py --seeds 100:103 --kinds family   # development seeds, family only
     python benchmarks/worlds.py --kinds replay --render disc     # replays, saturated-disc detector blobs
     python benchmarks/worlds.py --methods heatmap,heatmap:pixels,kalman  # METHOD:SOURCE sets FilterOptions.source
+    python benchmarks/worlds.py --methods heatmap,heatmap:motion=rolling_ball  # METHOD:FIELD=VALUE[+...] options
     python benchmarks/worlds.py --kinds replay --heights kept --split-air  # ground steps vs steps in the air
 
 ``--split-air`` adds a line per world: each method's mean error on the steps with the ball on the ground, on those
@@ -57,10 +58,10 @@ def family_worlds(seeds, steps, members):
         yield f"family/{member}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
 
 
-def replay_worlds(count, steps, render, heights_kinds=("flat", "kept")):
+def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), start=0):
     from heatpf_jax.sim.replay import replay_segments, replay_world
 
-    pieces = replay_segments("skillcorner", min_length_s=30.0)[:count]
+    pieces = replay_segments("skillcorner", min_length_s=30.0)[start:start + count]
     draw = _disc_render if render == "disc" else None
     for robot in ("static", "walking"):
         for heights in heights_kinds:
@@ -81,14 +82,23 @@ def air_masks(in_air: np.ndarray, burn_in: int, settle: int = 5) -> dict[str, np
     return {"ground": keep & ~in_air, "air": keep & in_air, "landed": keep & ~in_air & after}
 
 
+def variant_options(spec: str) -> FilterOptions:
+    """``SOURCE`` or ``FIELD=VALUE[+FIELD=VALUE...]`` (after ``METHOD:``) as static options."""
+    if not spec:
+        return FilterOptions()
+    if "=" not in spec:
+        return FilterOptions(source=spec)
+    return FilterOptions()._replace(**dict(item.split("=", 1) for item in spec.split("+")))
+
+
 def evaluate(name, seqs, methods) -> ScenarioResult:
-    """Every method on the world's sequences; ``METHOD:SOURCE`` runs METHOD with ``FilterOptions(source=SOURCE)``."""
-    by_options: dict[str, list[Variant]] = {}
+    """Every method on the world's sequences; ``METHOD:SOURCE`` runs METHOD with ``FilterOptions(source=SOURCE)``,
+    ``METHOD:FIELD=VALUE[+FIELD=VALUE]`` with those static options (``heatmap:motion=rolling_ball``)."""
+    by_options: dict[FilterOptions, list[Variant]] = {}
     for m in methods:
-        method, _, source = m.partition(":")
-        by_options.setdefault(source or "auto", []).append(Variant(m, method))
-    parts = [evaluate_sequences(name, seqs, variants=v, options=FilterOptions(source=source))
-             for source, v in by_options.items()]
+        method, _, spec = m.partition(":")
+        by_options.setdefault(variant_options(spec), []).append(Variant(m, method))
+    parts = [evaluate_sequences(name, seqs, variants=v, options=options) for options, v in by_options.items()]
     order = {m: i for i, m in enumerate(methods)}
     rows = sorted((r for part in parts for r in part.methods), key=lambda r: order[r.variant.name])
     return ScenarioResult(name, parts[0].truth, rows, parts[0].burn_in)
@@ -101,6 +111,10 @@ def main(argv=None) -> int:
     parser.add_argument("--kinds", default="family,replay", help="family, replay or both (default)")
     parser.add_argument("--members", help="family members, comma-separated (default: all)")
     parser.add_argument("--replays", type=int, default=6, help="replayed track pieces (default 6)")
+    parser.add_argument("--replay-start", type=int, default=0, help="the first replayed piece (default 0; the "
+                        "reported tables use pieces 0-5, choose defaults on later ones)")
+    parser.add_argument("--per-seed", action="store_true",
+                        help="also each method's mean error per seed or piece (the seed-to-seed spread)")
     parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
     parser.add_argument("--heights", default="flat,kept", help="replays' ball heights: flat, kept or both (default)")
     parser.add_argument("--methods", default=",".join(METHODS))
@@ -113,7 +127,8 @@ def main(argv=None) -> int:
     if "family" in args.kinds:
         worlds += list(family_worlds(seeds, args.steps, args.members.split(",") if args.members else None))
     if "replay" in args.kinds:
-        worlds += list(replay_worlds(args.replays, args.steps, args.render, tuple(args.heights.split(","))))
+        worlds += list(replay_worlds(args.replays, args.steps, args.render, tuple(args.heights.split(",")),
+                                     args.replay_start))
     print(f"methods: {', '.join(methods)}; family seeds {seeds[0]}..{seeds[-1]}; {args.steps} steps; "
           f"errors after step 10: mean [m] (radial rms / lateral rms)")
     header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
@@ -126,6 +141,9 @@ def main(argv=None) -> int:
         cells = [f"{s['mean']:.3f} ({s['radial']:.3f}/{s['lateral']:.3f})" for s in stats.values()]
         print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",
               flush=True)
+        if args.per_seed:
+            cells = ["/".join(f"{e:.2f}" for e in r.errors[:, result.burn_in:].mean(axis=1)) for r in result.methods]
+            print(f"{'  per seed':<28}" + "".join(f"{c:>24}" for c in cells), flush=True)
         if args.split_air:
             masks = air_masks(in_air, result.burn_in)
             counts = "/".join(str(int(v.sum())) for v in masks.values())

@@ -37,6 +37,7 @@ from heatpf_jax.motion.constant_velocity import ConstantVelocity
 from heatpf_jax.motion.ego import EGO_MOTIONS
 from heatpf_jax.motion.mass_inertia import MassInertia
 from heatpf_jax.motion.random_walk import DiffusionOnly, DiffusionParams, RandomWalk
+from heatpf_jax.motion.rolling_ball import RollingBall
 from heatpf_jax.observation.kernels import (
     KNN_METHODS,
     Floored,
@@ -57,6 +58,7 @@ __all__ = [
     "MEMORIES",
     "METHODS",
     "MODE_FINDERS",
+    "MOTIONS",
     "Method",
     "OBSERVATIONS",
     "SOURCES",
@@ -77,6 +79,12 @@ __all__ = [
 
 SPAWNS = ("uniform", "gaussian")
 SOURCES = ("pixels", "centroids", "lofted")
+MOTIONS = {  # what moves the particles between heat maps (III-D; Olufs 3.3), by name
+    "random_walk": RandomWalk,
+    "constant_velocity": ConstantVelocity,
+    "mass_inertia": MassInertia,
+    "rolling_ball": RollingBall,
+}
 MEMORIES = ("none", "tracks")
 MODE_FINDERS = {
     "none": lambda k: NoModes(),
@@ -133,6 +141,13 @@ class FilterOptions(NamedTuple):
             their blob's size places along the ray: :class:`~heatpf_jax.sources.lofted.LoftedSource`, for balls in
             the air). ``conventional``, ``kalman`` and
             ``bitbots2018`` keep their own.
+        motion: what moves the particles between heat maps (III-D): ``"auto"`` (the method's own:
+            ``"random_walk"`` for ``paper`` and ``conventional``, ``"constant_velocity"`` for ``heatmap``,
+            ``"mass_inertia"`` for ``extended``), ``"random_walk"`` (the paper's: odometry and diffusion),
+            ``"constant_velocity"`` (:class:`~heatpf_jax.motion.constant_velocity.ConstantVelocity`),
+            ``"mass_inertia"`` (Olufs eq. 4-6) or ``"rolling_ball"``
+            (:class:`~heatpf_jax.motion.rolling_ball.RollingBall`: rolling friction, kicks as a jump process).
+            ``kalman`` and ``bitbots2018`` keep their own.
     """
 
     num_particles: int = 500
@@ -150,6 +165,7 @@ class FilterOptions(NamedTuple):
     memory: str = "none"
     max_tracks: int = 4
     source: str = AUTO
+    motion: str = AUTO
 
 
 def validate_options(options: FilterOptions) -> None:
@@ -166,6 +182,8 @@ def validate_options(options: FilterOptions) -> None:
         raise ValueError(f"spawn: must be one of {list(SPAWNS)}, got {options.spawn!r}")
     if options.source not in (AUTO, *SOURCES):
         raise ValueError(f"source: must be one of {[AUTO, *SOURCES]}, got {options.source!r}")
+    if options.motion not in (AUTO, *MOTIONS):
+        raise ValueError(f"motion: must be one of {[AUTO, *MOTIONS]}, got {options.motion!r}")
     if options.observation not in (AUTO, *OBSERVATIONS):
         raise ValueError(f"observation: must be one of {[AUTO, *OBSERVATIONS]}, got {options.observation!r}")
     if options.modes not in MODE_FINDERS:
@@ -187,7 +205,7 @@ def _particle_filter(options: FilterOptions, source, observation: str = "inverse
     explorers = UniformExplorers(box=box) if options.spawn == "uniform" else GaussianExplorers()
     observation = observation if options.observation == AUTO else options.observation
     return Filter(
-        motion=RandomWalk(),
+        motion=_motion(options, "random_walk"),
         source=source,
         buffer=AgingBuffer(),
         observation=OBSERVATIONS[observation](k_max=options.k_max, knn=options.knn),
@@ -200,6 +218,11 @@ def _particle_filter(options: FilterOptions, source, observation: str = "inverse
         ego=EGO_MOTIONS[options.ego],
         memory=_memory(options),
     )
+
+
+def _motion(options: FilterOptions, default: str):
+    """The motion model named by ``options.motion``, the method's ``default`` when ``"auto"``."""
+    return MOTIONS[default if options.motion == AUTO else options.motion]()
 
 
 def _memory(options: FilterOptions):
@@ -241,7 +264,8 @@ def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     measurements beside the uniform ones (:class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`);
     its default params are :func:`heatmap_params`."""
     base = _particle_filter(options, _pixels(options), observation="range_aware")
-    return _with_hints(base._replace(motion=ConstantVelocity(), injectors=(*base.injectors, MeasurementExplorers())))
+    return _with_hints(base._replace(motion=_motion(options, "constant_velocity"),
+                                     injectors=(*base.injectors, MeasurementExplorers())))
 
 
 def heatmap_params(model: Filter) -> FilterParams:
@@ -251,6 +275,8 @@ def heatmap_params(model: Filter) -> FilterParams:
     (chosen on the world family's seeds 100-102)."""
     updates = {"motion.accel_std": 5.0, "motion.spawn_speed_std": 3.0, "buffer.aging": 0.6, "modes.bandwidth": 0.1,
                "source.max_spill": 1.5}
+    if isinstance(model.motion, RollingBall):  # its kicks, not a large white-noise acceleration, change its speed
+        updates = {k: v for k, v in updates.items() if k != "motion.accel_std"}
     if isinstance(model.observation, GaussianKernel):
         updates |= {"observation.k": min(10, model.observation.k_max), "observation.obs_std": 0.05}
     return P.set_by_name(model.default_params(), model.properties(), updates, skip_unknown=True)
@@ -269,7 +295,7 @@ def extended_filter(options: FilterOptions = FilterOptions()) -> Filter:
     box = tuple(float(b) for b in options.spawn_box)
     base = _particle_filter(options, _pixels(options), observation="gaussian")
     return _with_hints(base._replace(
-        motion=MassInertia(),
+        motion=_motion(options, "mass_inertia"),
         resampling=ClusterResampling(resampler=RESAMPLERS[options.resampler], correct=False),
         estimator=DominantMode(),
         injectors=(*base.injectors, RandomParticles(box=box), MeasurementExplorers()),

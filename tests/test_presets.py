@@ -61,6 +61,16 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     ]
     assert not ext.model.resampling.correct and ext.params.resampling.bandwidth == 0.1
     assert isinstance(ext.model.estimator, hp.estimate.DominantMode)
+    # motion=NAME swaps only the motion model; heatmap's large white-noise acceleration is for the constant
+    # velocity: the rolling ball keeps its own (its kicks change its speed) and heatmap's speed of new particles.
+    for name, piece in [("random_walk", hp.motion.RandomWalk), ("rolling_ball", hp.motion.RollingBall),
+                        ("constant_velocity", hp.motion.ConstantVelocity), ("mass_inertia", hp.motion.MassInertia)]:
+        swapped = hp.build("heatmap", hp.FilterOptions(motion=name))
+        assert swapped.model == heat.model._replace(motion=piece())
+        assert hp.build("paper", hp.FilterOptions(motion=name)).model == paper.model._replace(motion=piece())
+    rolling = hp.build("heatmap", hp.FilterOptions(motion="rolling_ball")).params.motion
+    assert rolling == hp.motion.RollingBallParams(spawn_speed_std=3.0)
+    assert hp.build("heatmap", hp.FilterOptions(motion="constant_velocity")) == heat
     # The observation option still applies to every particle filter.
     forced = hp.build("heatmap", hp.FilterOptions(observation="inverse_distance")).model
     assert isinstance(forced.observation, hp.observation.InverseDistance)
@@ -110,6 +120,6 @@ def test_options_validation_names_the_field():
     for change, field in [({"resampler": "bogus"}, "resampler"), ({"spawn": "normal"}, "spawn"),
                           ({"observation": "cauchy"}, "observation"), ({"num_particles": 0}, "num_particles"),
                           ({"k_max": 1.5}, "k_max"), ({"spawn_box": (1.0, 0.0, -1.0, 1.0)}, "spawn_box"),
-                          ({"knn": "kdtree"}, "knn")]:
+                          ({"knn": "kdtree"}, "knn"), ({"motion": "brownian"}, "motion")]:
         with pytest.raises(ValueError, match=rf"^{field}:"):
             hp.paper_filter(hp.FilterOptions(**change))
