@@ -58,14 +58,21 @@ def family_worlds(seeds, steps, members):
         yield f"family/{member}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
 
 
-def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), start=0):
+def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), development=False):
+    """The reported replays: the first ``count`` pieces of at least 30 s, seeds 0, 1, ...; with ``development``,
+    pieces of 20-30 s instead (none of the reported ones), 200 steps, seeds 1000, 1001, ...: for choosing."""
     from heatpf_jax.sim.replay import replay_segments, replay_world
 
-    pieces = replay_segments("skillcorner", min_length_s=30.0)[start:start + count]
+    reported = replay_segments("skillcorner", min_length_s=30.0)
+    pieces, first = reported[:count], 0
+    if development:
+        starts = {float(p.t[0]) for p in reported}
+        pieces = [p for p in replay_segments("skillcorner", min_length_s=20.0) if float(p.t[0]) not in starts]
+        pieces, first, steps = pieces[:count], 1000, min(steps, 200)
     draw = _disc_render if render == "disc" else None
     for robot in ("static", "walking"):
         for heights in heights_kinds:
-            runs = [replay_world(p, i, robot=robot, heights=heights, num_steps=steps, render=draw)
+            runs = [replay_world(p, first + i, robot=robot, heights=heights, num_steps=steps, render=draw)
                     for i, p in enumerate(pieces)]
             yield f"replay/{robot}/{heights}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
 
@@ -111,8 +118,8 @@ def main(argv=None) -> int:
     parser.add_argument("--kinds", default="family,replay", help="family, replay or both (default)")
     parser.add_argument("--members", help="family members, comma-separated (default: all)")
     parser.add_argument("--replays", type=int, default=6, help="replayed track pieces (default 6)")
-    parser.add_argument("--replay-start", type=int, default=0, help="the first replayed piece (default 0; the "
-                        "reported tables use pieces 0-5, choose defaults on later ones)")
+    parser.add_argument("--replay-dev", action="store_true", help="development replays: pieces of 20-30 s (none "
+                        "of the reported ones), seeds 1000+, 200 steps; choose defaults on these")
     parser.add_argument("--per-seed", action="store_true",
                         help="also each method's mean error per seed or piece (the seed-to-seed spread)")
     parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
@@ -128,7 +135,7 @@ def main(argv=None) -> int:
         worlds += list(family_worlds(seeds, args.steps, args.members.split(",") if args.members else None))
     if "replay" in args.kinds:
         worlds += list(replay_worlds(args.replays, args.steps, args.render, tuple(args.heights.split(",")),
-                                     args.replay_start))
+                                     args.replay_dev))
     print(f"methods: {', '.join(methods)}; family seeds {seeds[0]}..{seeds[-1]}; {args.steps} steps; "
           f"errors after step 10: mean [m] (radial rms / lateral rms)")
     header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
@@ -142,8 +149,9 @@ def main(argv=None) -> int:
         print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",
               flush=True)
         if args.per_seed:
-            cells = ["/".join(f"{e:.2f}" for e in r.errors[:, result.burn_in:].mean(axis=1)) for r in result.methods]
-            print(f"{'  per seed':<28}" + "".join(f"{c:>24}" for c in cells), flush=True)
+            for r in result.methods:  # one line per method: the seeds' (pieces') means
+                means = " ".join(f"{e:.3f}" for e in r.errors[:, result.burn_in:].mean(axis=1))
+                print(f"    per seed {r.variant.name}: {means}", flush=True)
         if args.split_air:
             masks = air_masks(in_air, result.burn_in)
             counts = "/".join(str(int(v.sum())) for v in masks.values())
