@@ -9,7 +9,7 @@ each method's mean error to the best other method's (worst world first), which i
     python benchmarks/worlds.py --seeds 100:103 --kinds family   # development seeds, family only
     python benchmarks/worlds.py --kinds replay --render disc     # replays, saturated-disc detector blobs
     python benchmarks/worlds.py --methods heatmap,heatmap:pixels,kalman  # METHOD:SOURCE sets FilterOptions.source
-    python benchmarks/worlds.py --methods heatmap,heatmap:motion=rolling_ball  # METHOD:FIELD=VALUE[+...] options
+    python benchmarks/worlds.py --methods heatmap,heatmap:motion=rolling_ball+accel_std=5  # options and params
     python benchmarks/worlds.py --kinds replay --heights kept --split-air  # ground steps vs steps in the air
 
 ``--split-air`` adds a line per world: each method's mean error on the steps with the ball on the ground, on those
@@ -89,13 +89,16 @@ def air_masks(in_air: np.ndarray, burn_in: int, settle: int = 5) -> dict[str, np
     return {"ground": keep & ~in_air, "air": keep & in_air, "landed": keep & ~in_air & after}
 
 
-def variant_options(spec: str) -> FilterOptions:
-    """``SOURCE`` or ``FIELD=VALUE[+FIELD=VALUE...]`` (after ``METHOD:``) as static options."""
+def variant_options(spec: str) -> tuple[FilterOptions, dict]:
+    """``SOURCE`` or ``NAME=VALUE[+NAME=VALUE...]`` (after ``METHOD:``): the static options among the names, and
+    the parameters (``accel_std=5``, by name as ``--set`` takes them) among the rest."""
     if not spec:
-        return FilterOptions()
+        return FilterOptions(), {}
     if "=" not in spec:
-        return FilterOptions(source=spec)
-    return FilterOptions()._replace(**dict(item.split("=", 1) for item in spec.split("+")))
+        return FilterOptions(source=spec), {}
+    items = dict(item.split("=", 1) for item in spec.split("+"))
+    options = {k: v for k, v in items.items() if k in FilterOptions._fields}
+    return FilterOptions()._replace(**options), {k: float(v) for k, v in items.items() if k not in options}
 
 
 def evaluate(name, seqs, methods) -> ScenarioResult:
@@ -104,7 +107,8 @@ def evaluate(name, seqs, methods) -> ScenarioResult:
     by_options: dict[FilterOptions, list[Variant]] = {}
     for m in methods:
         method, _, spec = m.partition(":")
-        by_options.setdefault(variant_options(spec), []).append(Variant(m, method))
+        options, overrides = variant_options(spec)
+        by_options.setdefault(options, []).append(Variant(m, method, overrides))
     parts = [evaluate_sequences(name, seqs, variants=v, options=options) for options, v in by_options.items()]
     order = {m: i for i, m in enumerate(methods)}
     rows = sorted((r for part in parts for r in part.methods), key=lambda r: order[r.variant.name])

@@ -369,3 +369,29 @@ def test_api_pages_and_module_table_match_the_package():
     assert not missing, f"modules on no API page: {missing}"
     page = api_docs.TABLE_PAGE.read_text()
     assert api_docs.table_page(page) == page, "the module table is out of date: run python -m tests.data.api_docs"
+
+
+def test_sphinx_roles_become_links_to_the_api_pages(tmp_path):
+    """docs/hooks/sphinx_roles.py on a two-page site: a full path, a package's re-export (linked where it is
+    defined), a short name (same page first), ``~`` showing the last part, and an unknown target as plain code."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("sphinx_roles", ROOT / "docs" / "hooks" / "sphinx_roles.py")
+    roles = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(roles)
+    motion, sources = tmp_path / "api" / "motion" / "index.html", tmp_path / "api" / "sources" / "index.html"
+    motion.parent.mkdir(parents=True)
+    sources.parent.mkdir(parents=True)
+    motion.write_text('<h2 id="heatpf_jax.motion.constant_velocity.ConstantVelocity"></h2>'
+                      '<h2 id="heatpf_jax.motion.random_walk.RandomWalk"></h2>')
+    sources.write_text('<h2 id="heatpf_jax.sources.pixels.PixelSource"></h2>'
+                       "<p>:class:<code>~heatpf_jax.motion.ConstantVelocity</code>, :func:<code>PixelSource</code>, "
+                       ":mod:<code>heatpf_jax.motion.random_walk.RandomWalk</code>, :data:<code>NOWHERE</code></p>")
+    roles.on_post_build({"site_dir": str(tmp_path)})
+    text = sources.read_text()
+    assert ('<a class="autorefs" href="../motion/index.html#heatpf_jax.motion.constant_velocity.ConstantVelocity">'
+            "<code>ConstantVelocity</code></a>") in text
+    assert ('<a class="autorefs" href="index.html#heatpf_jax.sources.pixels.PixelSource">'
+            "<code>PixelSource</code></a>") in text
+    assert "<code>heatpf_jax.motion.random_walk.RandomWalk</code></a>" in text
+    assert text.endswith(", <code>NOWHERE</code></p>") and ":class:" not in text and ":data:" not in text

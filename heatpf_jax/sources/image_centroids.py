@@ -32,9 +32,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array, ArrayLike, Float
 
-__all__ = ["BlobCentres", "ball_radius_px", "blob_centres", "box_sums", "summed_area"]
+__all__ = ["BlobCentres", "ball_radius_px", "blob_centres", "box_sums", "summed_area", "summed_areas"]
 
 
 class BlobCentres(NamedTuple):
@@ -61,6 +62,28 @@ def summed_area(table: Float[ArrayLike, "h w"]) -> Float[Array, "h+1 w+1"]:
     """Summed-area table with a zero first row and column: ``S[i, j] = sum(table[:i, :j])``."""
     s = jnp.cumsum(jnp.cumsum(jnp.asarray(table, jnp.float32), axis=0), axis=1)
     return jnp.pad(s, ((1, 0), (1, 0)))
+
+
+def _blocked_cumsum(x: Float[Array, "..."], axis: int, block: int) -> Float[Array, "..."]:
+    """Inclusive cumulative sum along ``axis``: sums within blocks of ``block`` entries and the blocks' running
+    totals, each a small triangular matrix product (XLA:CPU's ``cumsum`` is a windowed reduction, slower)."""
+    x = jnp.moveaxis(x, axis, -1)
+    n = x.shape[-1]
+    nb = -(-n // block)
+    padded = jnp.pad(x, [(0, 0)] * (x.ndim - 1) + [(0, nb * block - n)]).reshape(*x.shape[:-1], nb, block)
+    within = jnp.matmul(padded, jnp.triu(jnp.ones((block, block), x.dtype)), precision=lax.Precision.HIGHEST)
+    before = jnp.matmul(within[..., -1], jnp.triu(jnp.ones((nb, nb), x.dtype), 1), precision=lax.Precision.HIGHEST)
+    out = (within + before[..., None]).reshape(*x.shape[:-1], nb * block)[..., :n]
+    return jnp.moveaxis(out, -1, axis)
+
+
+def summed_areas(tables: Float[ArrayLike, "c h w"], block: int = 8) -> Float[Array, "c h+1 w+1"]:
+    """:func:`summed_area` of each of ``c`` stacked tables at once, the same up to float rounding (the sums are
+    taken in another order): cumulative sums by blocks of ``block`` entries as matrix products, about half the
+    cost of ``jnp.cumsum`` on XLA:CPU for three 200 x 150 tables."""
+    s = jnp.asarray(tables, jnp.float32)
+    s = _blocked_cumsum(_blocked_cumsum(s, -1, block), -2, block)
+    return jnp.pad(s, ((0, 0), (1, 0), (1, 0)))
 
 
 def box_sums(s: Float[Array, "h1 w1"], u0, u1, v0, v1) -> Float[Array, "..."]:
