@@ -230,3 +230,32 @@ def test_write_run_bag_modes_tracks_moving_camera_and_replace(small_sequence, tm
     topics, _ = read_bag(bag)
     np.testing.assert_array_equal([t for t, _ in topics["/heatpf/estimate"][1]],
                                   5 + np.round(np.arange(4) * float(seq.dt) * 1e9).astype(np.int64))
+
+
+def test_run_bag_reads_with_the_mcap_reference_decoder(bag_run):
+    """What Foxglove needs: the .mcap file alone, read by the MCAP project's own reader and ROS 2 decoder (not
+    rosbags, which wrote it): every channel a ``ros2msg`` schema and ``cdr`` messages that decode, in time order,
+    with the estimate's values as rosbags reads them."""
+    mcap_reader = pytest.importorskip("mcap.reader")
+    mcap_ros2 = pytest.importorskip("mcap_ros2.decoder")
+    _, _, bag = bag_run
+    (path,) = bag.glob("*.mcap")
+    with path.open("rb") as f:
+        reader = mcap_reader.make_reader(f, decoder_factories=[mcap_ros2.DecoderFactory()])
+        summary = reader.get_summary()
+        assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+        assert {c.message_encoding for c in summary.channels.values()} == {"cdr"}
+        decoded = {}
+        times = []
+        for schema, channel, message, ros_msg in reader.iter_decoded_messages(log_time_order=True):
+            decoded.setdefault(channel.topic, []).append(ros_msg)
+            times.append(message.log_time)
+    assert times == sorted(times)
+    topics, _ = read_bag(bag)
+    assert {t: len(m) for t, m in decoded.items()} == {t: len(m) for t, (_, m) in topics.items()}
+    ours = [(m.pose.pose.position.x, m.pose.pose.position.y) for _, m in topics["/heatpf/estimate"][1]]
+    theirs = [(m.pose.pose.position.x, m.pose.pose.position.y) for m in decoded["/heatpf/estimate"]]
+    assert theirs == ours
+    cloud = decoded["/heatpf/particles"][0]
+    assert [f.name for f in cloud.fields] == ["x", "y", "z", "weight"] and cloud.width * cloud.point_step == len(
+        cloud.data)
