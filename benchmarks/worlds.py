@@ -166,6 +166,8 @@ def main(argv=None) -> int:
             print(f"{'  ground/air/landed':<28}" + "".join(f"{c:>24}" for c in cells) + f"   [steps {counts}]",
                   flush=True)
         for m in methods:
+            if len(methods) < 2:
+                break  # one method: no ratio to another
             best_other = min(stats[o]["mean"] for o in methods if o != m)
             ratios.setdefault(m, []).append((stats[m]["mean"] / best_other, name))
     print("\nratio of each method's mean error to the best other method's, worst world first:")

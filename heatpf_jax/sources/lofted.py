@@ -23,7 +23,7 @@ activation summed over the pixels at or above the threshold ``t`` is ``M = 2 pi 
 peak ``p``, so ``s = sqrt(M / (2 pi (p - t)))`` and ``rho = s / blob_scale``, with ``blob_scale`` the
 detector's blob std per apparent radius (0.6 for :func:`heatpf_jax.sim.render.blob`). ``M``, the centroid and
 the peak come from an adaptive mean shift over summed-area tables
-(:func:`~heatpf_jax.sources.image_centroids.summed_area`): each above-threshold pixel's window starts as large as a
+(:func:`~heatpf_jax.sources.image_centroids.summed_areas`): each above-threshold pixel's window starts as large as a
 ground ball's blob at that pixel and grows with the blob's size estimate (``reach`` stds), up to
 ``max_half_px`` pixels.
 

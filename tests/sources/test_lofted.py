@@ -9,7 +9,8 @@ import pytest
 
 import heatpf_jax as hp
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, air_points, blob_sizes
+from heatpf_jax.sources.image_centroids import summed_area, summed_areas
+from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, _box_max, air_points, blob_sizes
 
 INTRINSICS = np.array([143.0, 143.0, 99.5, 74.5])
 SHAPE = (150, 200)
@@ -139,6 +140,20 @@ def test_blob_sizes_recovers_a_gaussian_std():
         out = blob_sizes(heat, start, INTRINSICS, pose, threshold=0.3, plane_height=RADIUS)
         np.testing.assert_allclose(np.asarray(out.uv[0]), [u0, v0], atol=0.1)
         assert float(out.std_px[0]) == pytest.approx(std, rel=0.1)
+
+
+def test_fast_tables_match_brute_force():
+    """The blocked summed-area tables and the shifted-maxima local peak against NumPy (float64 sums, a loop max)."""
+    rng = np.random.default_rng(13)
+    tables = rng.uniform(0.0, 1.0, (3, 37, 53)).astype(np.float32) * (rng.uniform(size=(3, 37, 53)) > 0.5)
+    expected = np.pad(tables.astype(np.float64).cumsum(1).cumsum(2), ((0, 0), (1, 0), (1, 0)))
+    np.testing.assert_allclose(np.asarray(summed_areas(tables)), expected, rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(summed_areas(tables))[1], np.asarray(summed_area(tables[1])), rtol=1e-5,
+                               atol=1e-4)
+    heat = tables[0]
+    padded = np.pad(heat, 3, constant_values=-np.inf)
+    brute = np.array([[padded[i:i + 7, j:j + 7].max() for j in range(heat.shape[1])] for i in range(heat.shape[0])])
+    np.testing.assert_array_equal(np.asarray(_box_max(jnp.asarray(heat), 3)), brute)
 
 
 def test_air_points_inverts_the_projection():
