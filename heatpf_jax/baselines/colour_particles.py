@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray, UInt8
 
-from heatpf_jax.baselines.image_sequences import track
+from heatpf_jax.baselines.image_sequences import SequenceTracker
 from heatpf_jax.baselines.image_window import _F32, Window, _clip_to_image, _safe_div
 from heatpf_jax.colour.space import DEFAULT_BINS, MAX_BOX_HALF, bin_table, box_counts
 from heatpf_jax.params import make_params, nonnegative, positive
@@ -119,7 +119,7 @@ class ColourParticleInfo(NamedTuple):
 
 
 @dataclass(frozen=True)
-class ColourParticleTracker:
+class ColourParticleTracker(SequenceTracker):
     """Perez et al.'s colour particle filter in the image with rectangular windows.
 
     Attributes:
@@ -186,14 +186,3 @@ class ColourParticleTracker:
         """:func:`window_histograms` with this tracker's bins and ``top_bins``."""
         return window_histograms(image, q, centres, half_size, self.bins, self.top_bins)
 
-    def track(
-        self,
-        key: PRNGKeyArray,
-        images: UInt8[ArrayLike, "t h w 3"],
-        q: Float[ArrayLike, " m"],
-        start_uv: Float[ArrayLike, "2"],
-        half_size: Float[ArrayLike, "*2"],
-        params: ColourParticleParams,
-    ) -> Float[Array, "t 2"]:
-        """:func:`track` with this tracker."""
-        return track(key, images, q, start_uv, half_size, params, tracker=self)

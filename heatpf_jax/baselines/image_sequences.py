@@ -27,7 +27,7 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray, UInt8
 
 from heatpf_jax.baselines.image_window import _window
 
-__all__ = ["run", "track"]
+__all__ = ["SequenceTracker", "run", "track"]
 
 
 @partial(jax.jit, static_argnames=("tracker",))
@@ -79,3 +79,21 @@ def track(
 ) -> Float[Array, "t 2"]:
     """The ``(u, v)`` that ``tracker`` reports for each frame, ``float32 [T, 2]`` (the jitted :func:`run`'s)."""
     return run(key, images, q, start_uv, half_size, params, tracker=tracker)[1].position
+
+
+class SequenceTracker:
+    """What every image-space tracker gets from the sequence runner: ``tracker.track(...)``, :func:`track` with
+    this tracker (a base of the trackers; it holds no fields, so a frozen dataclass tracker still hashes by
+    value as ``run``'s static argument)."""
+
+    def track(
+        self,
+        key: PRNGKeyArray,
+        images: UInt8[ArrayLike, "t h w 3"],
+        q: Float[ArrayLike, " m"],
+        start_uv: Float[ArrayLike, "2"],
+        half_size: Float[ArrayLike, "*2"],
+        params: Any,
+    ) -> Float[Array, "t 2"]:
+        """:func:`track` with this tracker."""
+        return track(key, images, q, start_uv, half_size, params, tracker=self)

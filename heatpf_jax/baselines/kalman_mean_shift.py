@@ -14,7 +14,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray, UInt8
 
-from heatpf_jax.baselines.image_sequences import track
+from heatpf_jax.baselines.image_sequences import SequenceTracker
 from heatpf_jax.baselines.image_window import _F32, Window, _clip_to_image
 from heatpf_jax.baselines.kalman import KalmanState, kalman_predict, kalman_update
 from heatpf_jax.baselines.mean_shift import MeanShiftParams, MeanShiftTracker
@@ -73,7 +73,7 @@ class KalmanMeanShiftInfo(NamedTuple):
 
 
 @dataclass(frozen=True)
-class KalmanMeanShiftTracker:
+class KalmanMeanShiftTracker(SequenceTracker):
     """The paper's "Mean Shift + KL": mean shift seeded by a constant-velocity Kalman filter, which takes its result.
 
     Per frame: predict (``F`` = constant velocity over one frame, white-noise acceleration ``accel_std``);
@@ -140,14 +140,3 @@ class KalmanMeanShiftTracker:
         info = KalmanMeanShiftInfo(position=pos, measurement=z, rho=rho, iterations=iterations, found=found)
         return KalmanMeanShiftState(kalman=kalman, half_size=half, reference=state.reference), info
 
-    def track(
-        self,
-        key: PRNGKeyArray,
-        images: UInt8[ArrayLike, "t h w 3"],
-        q: Float[ArrayLike, " m"],
-        start_uv: Float[ArrayLike, "2"],
-        half_size: Float[ArrayLike, "*2"],
-        params: KalmanMeanShiftParams,
-    ) -> Float[Array, "t 2"]:
-        """:func:`track` with this tracker."""
-        return track(key, images, q, start_uv, half_size, params, tracker=self)

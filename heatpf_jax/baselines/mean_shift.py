@@ -19,7 +19,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray, UInt8
 
-from heatpf_jax.baselines.image_sequences import track
+from heatpf_jax.baselines.image_sequences import SequenceTracker
 from heatpf_jax.baselines.image_window import _F32, Window, _clip_to_image, _safe_div
 from heatpf_jax.colour.space import DEFAULT_BINS, num_bins, rgi_bins
 from heatpf_jax.params import make_params, positive, unit_interval
@@ -69,7 +69,7 @@ class MeanShiftInfo(NamedTuple):
 
 
 @dataclass(frozen=True)
-class MeanShiftTracker:
+class MeanShiftTracker(SequenceTracker):
     """Comaniciu et al.'s mean-shift tracker with an elliptical Epanechnikov window.
 
     Attributes:
@@ -114,18 +114,6 @@ class MeanShiftTracker:
         centre, half, rho, iterations = self.search(padded, state.centre, state.half_size, state.reference, params)
         info = MeanShiftInfo(position=centre, rho=rho, iterations=iterations, found=rho > 0.0)
         return MeanShiftState(centre=centre, half_size=half, reference=state.reference), info
-
-    def track(
-        self,
-        key: PRNGKeyArray,
-        images: UInt8[ArrayLike, "t h w 3"],
-        q: Float[ArrayLike, " m"],
-        start_uv: Float[ArrayLike, "2"],
-        half_size: Float[ArrayLike, "*2"],
-        params: MeanShiftParams,
-    ) -> Float[Array, "t 2"]:
-        """:func:`track` with this tracker."""
-        return track(key, images, q, start_uv, half_size, params, tracker=self)
 
     # -- the search, shared with the Kalman variant --
 

@@ -41,7 +41,7 @@ from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from heatpf_jax.estimate.mean_shift import mean_shift
 from heatpf_jax.params import positive, unit_interval
-from heatpf_jax.resampling.resamplers import Resampled, check_resampler, effective_sample_size, systematic
+from heatpf_jax.resampling.resamplers import Resampled, check_resampler, ess_trigger, systematic
 
 __all__ = ["ClusterParams", "ClusterResampling", "cluster_counts", "resample_by_cluster"]
 
@@ -184,8 +184,7 @@ class ClusterResampling:
     ) -> Resampled:
         n = log_weights.shape[0]
         weights = jnp.exp(log_weights)
-        ess = effective_sample_size(weights)
-        resampled = ess < params.resample_threshold * n
+        ess, resampled = ess_trigger(weights, params.resample_threshold)
         slots = jnp.arange(n, dtype=jnp.int32)
 
         def by_cluster(_):

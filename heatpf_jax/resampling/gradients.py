@@ -35,7 +35,7 @@ from heatpf_jax.resampling.resamplers import (
     ESSParams,
     Resampled,
     check_resampler,
-    effective_sample_size,
+    ess_trigger,
     sorted_resampled,
     systematic,
 )
@@ -147,8 +147,7 @@ class SoftResampling:
         del xy
         n = log_weights.shape[0]
         weights = jnp.exp(log_weights)
-        ess = effective_sample_size(weights)
-        resampled = ess < params.resample_threshold * n
+        ess, resampled = ess_trigger(weights, params.resample_threshold)
         alpha = self.alpha
         q = alpha * lax.stop_gradient(weights) + (1.0 - alpha) / n
         idx = order[self.resampler(key, q[order], n)]

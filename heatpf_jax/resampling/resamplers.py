@@ -37,6 +37,7 @@ __all__ = [
     "ESSResampling",
     "Resampled",
     "effective_sample_size",
+    "ess_trigger",
     "multinomial",
     "residual",
     "sorted_resampled",
@@ -50,6 +51,14 @@ def effective_sample_size(weights: Float[ArrayLike, " n"]) -> Float[Array, ""]:
     weights = jnp.asarray(weights)
     weights = weights / jnp.sum(weights)
     return 1.0 / jnp.sum(weights * weights)
+
+
+def ess_trigger(
+    weights: Float[Array, " n"], threshold: Float[ArrayLike, ""]
+) -> tuple[Float[Array, ""], Bool[Array, ""]]:
+    """The resampling trigger (III-E): ``(ess, ess < threshold * N)`` of normalised weights."""
+    ess = effective_sample_size(weights)
+    return ess, ess < threshold * weights.shape[0]
 
 
 def _search(weights: Float[Array, " n"], positions: Float[Array, " m"]) -> Int[Array, " m"]:
@@ -199,8 +208,7 @@ class ESSResampling:
         del xy
         n = log_weights.shape[0]
         weights = jnp.exp(log_weights)
-        ess = effective_sample_size(weights)
-        resampled = ess < params.resample_threshold * n
+        ess, resampled = ess_trigger(weights, params.resample_threshold)
         idx = self.resampler(key, weights[order], n)
         return sorted_resampled(resampled, order[idx], jnp.full_like(log_weights, -math.log(n)), log_weights, order,
                                 ess)

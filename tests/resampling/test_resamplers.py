@@ -298,3 +298,14 @@ def test_ess_resampling_piece_ancestors_and_ranks(rng):
     np.testing.assert_array_equal(np.asarray(kept.ancestors), np.arange(n))
     np.testing.assert_array_equal(np.asarray(kept.rank), np.argsort(np.argsort(-w, kind="stable"), kind="stable"))
     np.testing.assert_array_equal(np.asarray(kept.log_weights), np.asarray(log_w))
+
+
+def test_ess_trigger_against_numpy():
+    """``ess_trigger``: the effective sample size 1 / sum(w^2) and whether it is below threshold * N."""
+    rng = np.random.default_rng(3)
+    w = rng.gamma(0.3, size=50)
+    w /= w.sum()
+    ess, below = hp.resampling.ess_trigger(jnp.asarray(w, jnp.float32), 0.5)
+    np.testing.assert_allclose(float(ess), 1.0 / np.sum(w**2), rtol=1e-5)
+    assert bool(below) == (1.0 / np.sum(w**2) < 25.0)
+    assert not bool(hp.resampling.ess_trigger(jnp.full(8, 1 / 8), 0.99)[1])
