@@ -334,6 +334,8 @@ def main(argv=None) -> int:
                         help="reference frames (reference_frames); NAME-image: that frame's box as an image; "
                         "NAME-plain: the previous release's reference")
     parser.add_argument("--theta", type=float, default=None, help="eq. 3's theta (default: heatpf colour's)")
+    parser.add_argument("--window-scale", type=float, default=None,
+                        help="the object window's half-size over the ball's radius (default: heatpf colour's)")
     parser.add_argument("--speed", action="store_true", help="time heatpf colour on 200 frames instead")
     parser.add_argument("--repeats", type=int, default=30, help="--speed: calls of one map timed")
     parser.add_argument("--before", default=None, help="--speed: a directory holding another heatpf_jax to time")
@@ -345,6 +347,8 @@ def main(argv=None) -> int:
     scales = [float(s) for s in args.scales.split(",")]
     offsets = [float(s) for s in args.offsets.split(",")]
     params = SCALED_PARAMS if args.theta is None else SCALED_PARAMS._replace(theta=args.theta)
+    if args.window_scale is not None:
+        params = params._replace(window_scale=args.window_scale)
     rows = []
     start = time.perf_counter()
     for renderer in args.renderers.split(","):

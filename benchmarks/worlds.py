@@ -172,6 +172,8 @@ def main(argv=None) -> int:
             ratios.setdefault(m, []).append((stats[m]["mean"] / best_other, name))
     print("\nratio of each method's mean error to the best other method's, worst world first:")
     for m in methods:
+        if m not in ratios:
+            continue  # one method: no ratio
         worst = sorted(ratios[m], reverse=True)
         print(f"  {m:<14} " + ", ".join(f"{r:.2f} {w}" for r, w in worst[:4]))
     return 0

@@ -96,6 +96,8 @@ class FilterState(NamedTuple):
         mean: ``float32 [2]`` the last estimate.
         t: ``int32 []`` number of steps taken.
         memory: the long-term memory's tracks (:class:`~heatpf_jax.memory.table.TrackTable`; capacity 0 without).
+        source: what the source carries from frame to frame (a source with ``init_state``, e.g. the blob scale
+            :class:`~heatpf_jax.sources.lofted.LoftedSource` learns); ``()`` for a source without.
     """
 
     particles: Any
@@ -104,6 +106,7 @@ class FilterState(NamedTuple):
     mean: Float[Array, "2"]
     t: Int[Array, ""]
     memory: TrackTable
+    source: Any = ()
 
 
 class StepInfo(NamedTuple):
@@ -252,6 +255,7 @@ class Filter(NamedTuple):
             mean=jnp.mean(xy, axis=0),
             t=jnp.zeros((), jnp.int32),
             memory=self.memory.init(),
+            source=self.source.init_state() if hasattr(self.source, "init_state") else (),
         )
 
     def _seed(self, key, state: FilterState, particles, buffer, ego_tracks, dt, params: FilterParams):
@@ -279,6 +283,25 @@ class Filter(NamedTuple):
             context = injector.seed(jax.random.fold_in(k_seed, i), context, params.injectors[injector.name])
         return context.particles, context.log_weights
 
+    def _measure(self, carried, inputs: StepInputs, params) -> tuple[Measurements, Any]:
+        """The source's measurements of this step's heat map (none without one), and what the source carries: a
+        source with ``measure_state`` (:class:`~heatpf_jax.pieces.StatefulSource`) updates it only on a heat map."""
+        size = self.source.size
+        if hasattr(self.source, "measure_state"):
+            return lax.cond(
+                inputs.has_heatmap,
+                lambda c: self.source.measure_state(inputs, params, c),
+                lambda c: (empty_measurements(size), c),
+                carried,
+            )
+        new = lax.cond(
+            inputs.has_heatmap,
+            lambda _: self.source.measure(inputs, params),
+            lambda _: empty_measurements(size),
+            None,
+        )
+        return new, carried
+
     def step(
         self, key: PRNGKeyArray, state: FilterState, inputs: StepInputs, params: FilterParams
     ) -> tuple[FilterState, StepInfo]:
@@ -298,13 +321,7 @@ class Filter(NamedTuple):
         ego = self.ego.ego(inputs, params.ego)
         inputs = inputs._replace(odometry=ego.particles)
         particles = self.motion.predict(k_motion, state.particles, inputs, params.motion)
-        size = self.source.size
-        new = lax.cond(
-            inputs.has_heatmap,
-            lambda _: self.source.measure(inputs, params.source),
-            lambda _: empty_measurements(size),
-            None,
-        )
+        new, source_state = self._measure(state.source, inputs, params.source)
         buffer = self.buffer.update(state.buffer, new, inputs, params.buffer)
         particles, prior_log_w = self._seed(key, state, particles, buffer, ego.tracks, inputs.dt, params)
 
@@ -349,6 +366,7 @@ class Filter(NamedTuple):
             mean=est.mean,
             t=state.t + 1,
             memory=tracks,
+            source=source_state,
         )
         info = StepInfo(
             mean=est.mean,

@@ -32,6 +32,7 @@ __all__ = [
     "MotionModel",
     "ObservationModel",
     "ResamplingStrategy",
+    "StatefulSource",
     "StepInputs",
 ]
 
@@ -91,6 +92,18 @@ class MeasurementSource(_Piece, Protocol):
     size: int
 
     def measure(self, inputs: StepInputs, params: Any) -> Measurements: ...
+
+
+@runtime_checkable
+class StatefulSource(MeasurementSource, Protocol):
+    """A source that carries something from frame to frame (``FilterState.source``), e.g. what it has learned
+    of the detector (:class:`~heatpf_jax.sources.lofted.LoftedSource`'s blob scale). The filter calls
+    ``measure_state`` instead of ``measure``, only on steps with a heat map."""
+
+    def init_state(self) -> Any:
+        """The carried state before the first frame (a pytree of fixed shape)."""
+
+    def measure_state(self, inputs: StepInputs, params: Any, state: Any) -> tuple[Measurements, Any]: ...
 
 
 @runtime_checkable

@@ -133,13 +133,13 @@ class FilterOptions(NamedTuple):
             ``modes`` is ``"none"``, with hint particles for lost tracks).
         max_tracks: the memory's capacity.
         source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"pixels"`` for
-            ``paper``, ``heatmap`` and ``extended``), ``"pixels"`` (every pixel at or above the threshold, where
-            it lies: the paper's source), ``"centroids"`` (every such pixel at its blob's centroid in the
-            image, :class:`~heatpf_jax.sources.pixels.CentroidSource`; with ``heatmap`` its blobs that spill out of a
-            ground ball's window by more than 1.5 are dropped) or ``"lofted"`` (every such pixel on the ground,
+            ``paper`` and ``extended``, ``"lofted"`` for ``heatmap``), ``"pixels"`` (every pixel at or above the
+            threshold, where it lies: the paper's source), ``"centroids"`` (every such pixel at its blob's centroid
+            in the image, :class:`~heatpf_jax.sources.pixels.CentroidSource`; with ``heatmap`` its blobs that spill
+            out of a ground ball's window by more than 1.5 are dropped) or ``"lofted"`` (every such pixel on the ground,
             except those of a blob larger than a ground ball there, which go to the ground point under the ball
             their blob's size places along the ray: :class:`~heatpf_jax.sources.lofted.LoftedSource`, for balls in
-            the air). ``conventional``, ``kalman`` and
+            the air; the detector's blob size learned from the heat maps). ``conventional``, ``kalman`` and
             ``bitbots2018`` keep their own.
         motion: what moves the particles between heat maps (III-D): ``"auto"`` (the method's own:
             ``"random_walk"`` for ``paper`` and ``conventional``, ``"constant_velocity"`` for ``heatmap``,
@@ -256,14 +256,16 @@ def paper_filter(options: FilterOptions = FilterOptions()) -> Filter:
 
 def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     """The product's heat-map filter (``--method heatmap``): the paper's pipeline (every above-threshold pixel
-    a measurement; ``FilterOptions(source="centroids")`` moves each to its blob's centroid in the image
-    first, :class:`~heatpf_jax.sources.pixels.CentroidSource`) with a velocity state
+    a measurement, on the ground, except the pixels of a blob too large for a ground ball there, which go to
+    the ground point under the ball in the air that their size places: :class:`~heatpf_jax.sources.lofted.LoftedSource`,
+    its detector's blob size learned from the heat maps; ``FilterOptions(source="pixels")`` keeps every pixel
+    where it projects, the paper's source) with a velocity state
     (:class:`~heatpf_jax.motion.constant_velocity.ConstantVelocity`) and a range-aware matched filter over the k nearest
     measurements (:class:`~heatpf_jax.observation.range_aware.FootprintTemplate`, each kernel as wide as
     its pixel's ground footprint) instead of eq. (1)'s inverse distance, and explorers drawn from the
     measurements beside the uniform ones (:class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`);
     its default params are :func:`heatmap_params`."""
-    base = _particle_filter(options, _pixels(options), observation="range_aware")
+    base = _particle_filter(options, _pixels(options, "lofted"), observation="range_aware")
     return _with_hints(base._replace(motion=_motion(options, "constant_velocity"),
                                      injectors=(*base.injectors, MeasurementExplorers())))
 

@@ -34,8 +34,9 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     paper, heat, ext = (hp.build(name) for name in ("paper", "heatmap", "extended"))
     # paper: the 2019 filter as the default Filter of pieces (static position, eq. 1, plain resampling).
     assert paper.model == hp.Filter() and paper.params == hp.Filter().default_params()
-    # heatmap: the same pipeline with a velocity state and the range-aware observation.
-    assert isinstance(heat.model.source, hp.sources.PixelSource)
+    # heatmap: the same pipeline with the lofted source (its blob scale learned), a velocity state and the
+    # range-aware observation.
+    assert heat.model.source == hp.sources.LoftedSource() and heat.params.source == hp.sources.LoftedParams()
     assert isinstance(heat.model.motion, hp.motion.ConstantVelocity)
     assert isinstance(heat.model.observation, hp.observation.FootprintTemplate)
     assert [type(i) for i in heat.model.injectors] == [hp.injection.UniformExplorers, hp.injection.MeasurementExplorers]
@@ -48,7 +49,10 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     centroids = hp.build("heatmap", hp.FilterOptions(source="centroids"))
     assert centroids.model == heat.model._replace(source=hp.sources.CentroidSource())
     assert centroids.params.source == hp.sources.CentroidParams(max_spill=1.5)
-    assert hp.build("heatmap", hp.FilterOptions(source="pixels")) == heat
+    pixels = hp.build("heatmap", hp.FilterOptions(source="pixels"))
+    assert pixels.model == heat.model._replace(source=hp.sources.PixelSource())
+    assert pixels.params.source == hp.sources.SourceParams()
+    assert hp.build("heatmap", hp.FilterOptions(source="lofted")) == heat
     assert hp.build("paper", hp.FilterOptions(source="centroids")).params.source == hp.sources.CentroidParams()
     gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
     assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05

@@ -70,12 +70,17 @@ def test_tune_moves_the_tuned_parameters_only(heatmap, sequences):
             assert end[name].dtype == start[name].dtype, name
 
     # The first reported loss is the mean over sequences and seeds of the filter's squared error after the
-    # burn-in: the plain filter's runs with tune's seeds, scored in NumPy.
+    # burn-in: the plain filter's runs with tune's seeds, scored in NumPy, with the params tune starts from (their
+    # round trip through the unconstrained space rounds the last bit, and one heat-map filter run can amplify that
+    # by a few per cent: a blob at a decision's boundary).
+    props = model.properties()
+    trainable, frozen = P.partition(P.as_arrays(params, props), props)
+    start_params = P.combine(P.from_unconstrained(P.to_unconstrained(trainable, props), props), frozen)
     seeds = jax.random.split(jax.random.fold_in(key, 0), 2)
     errors = []
     for seq in sequences:
         for seed in seeds:
-            mean = np.asarray(hp.run(seed, seq, params, model).info.mean, np.float64)
+            mean = np.asarray(hp.run(seed, seq, start_params, model).info.mean, np.float64)
             errors.append(np.mean(np.sum((mean - seq.ground_truth)[BURN_IN:] ** 2, axis=-1)))
     np.testing.assert_allclose(result.history[0], np.mean(errors), rtol=1e-3)
 

@@ -14,12 +14,18 @@ that rolls with friction. One step:
 2. **candidates**: the filter's modes (``Filter.modes``; the estimate when there are none) that are
    *observed*, i.e. have at least ``memory_min_support`` of buffered measurement weight within
    ``memory_support_radius``: a mode of particles with nothing under it is the filter guessing, not seeing.
-   The memory observes the centroid of that weight, the blob under the candidate (:func:`observed_blob`), not the
-   particles' mean, which passes between two blobs when the filter moves from one to the other;
+   The memory observes the blob under the candidate, not the particles' mean, which passes between two blobs
+   when the filter moves from one to the other: the centroid of the memory's own blob (step 4) holding the most of
+   that weight (:func:`blob_under`; the centroid of the weight, :func:`observed_blob`, where it lies in no blob),
+   so that a mode on its way from a vanishing ball to a distractor beside it is seen on one of them, never on a
+   mean of the two that drags the ball's track over;
 3. **associate** candidates to tracks within each track's **gate**: at most ``memory_gate`` metres *and*
    ``memory_redetect_sigmas`` Mahalanobis sigmas (``P_xy + memory_obs_std^2 I``) from its *prediction*, most
    likely pairs first (:func:`gate_costs`), and update those tracks (measurement std ``memory_obs_std``); their
-   age returns to 0. A track is never moved by anything outside its gate;
+   age returns to 0. A track is never moved by anything outside its gate. A *lost rolling* track's gate also
+   holds only what its roll can have reached since it was last seen (:func:`motion_consistent`): nothing behind
+   that place (a ball does not roll back) nor outside a cone of ``memory_lost_turn`` around its motion; a blob
+   there opens a track of its own, or is left to the static track that explains it, while the lost track rolls on;
 4. **re-detect**: the memory finds the blobs of the buffer itself (:func:`find_blobs`, up to ``max_blobs``: a
    pixel's footprint stretches a ball's pixels along the ray) and pairs them with its tracks, most likely pairs
    first, each blob's centroid inside the track's gate; a track no candidate took is re-detected at its blob when
@@ -59,7 +65,8 @@ The modules, by idea (none imports one listed after it):
 * :mod:`~heatpf_jax.memory.table`: the track table (:class:`TrackTable`) and its queries (:func:`lost_tracks`);
 * :mod:`~heatpf_jax.memory.predict`: step 1, the rolling prediction;
 * :mod:`~heatpf_jax.memory.candidates`: step 2, the filter's candidates and the buffered weight under them;
-* :mod:`~heatpf_jax.memory.gates`: the gates of step 3 and the most-likely-first pairing;
+* :mod:`~heatpf_jax.memory.gates`: the gates of step 3 (and a lost rolling track's cone) and the
+  most-likely-first pairing;
 * :mod:`~heatpf_jax.memory.blobs`: step 4, the memory's own blobs (:func:`find_blobs`) and re-detection;
 * :mod:`~heatpf_jax.memory.update`: one whole step: associate, update, re-detect, birth, roles, forget;
 * :mod:`~heatpf_jax.memory.track_memory`: the pieces, :class:`NoMemory` and :class:`TrackMemory`, and what
@@ -67,8 +74,8 @@ The modules, by idea (none imports one listed after it):
 """
 
 from heatpf_jax.memory.blobs import Blobs, find_blobs
-from heatpf_jax.memory.candidates import candidates_from, observed_blob, observed_support
-from heatpf_jax.memory.gates import gate_costs
+from heatpf_jax.memory.candidates import blob_under, candidates_from, observed_blob, observed_support
+from heatpf_jax.memory.gates import gate_costs, motion_consistent
 from heatpf_jax.memory.params import MemoryParams
 from heatpf_jax.memory.table import TrackTable, complete_tracks, empty_tracks, lost_tracks
 from heatpf_jax.memory.track_memory import NoMemory, Recall, TrackMemory
@@ -80,12 +87,14 @@ __all__ = [
     "Recall",
     "TrackMemory",
     "TrackTable",
+    "blob_under",
     "candidates_from",
     "complete_tracks",
     "empty_tracks",
     "find_blobs",
     "gate_costs",
     "lost_tracks",
+    "motion_consistent",
     "observed_blob",
     "observed_support",
 ]

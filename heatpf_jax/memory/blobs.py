@@ -81,10 +81,11 @@ def find_blobs(buffer: Measurements, params: "MemoryParams", count: int) -> Blob
     return Blobs(xy=xy, weight=weight, valid=weight >= params.memory_min_support, member=member)
 
 
-def _blob_of_track(tracks: TrackTable, blobs: Blobs, params: "MemoryParams") -> Int[Array, " m"]:
+def _blob_of_track(tracks: TrackTable, blobs: Blobs, params: "MemoryParams", dt=None) -> Int[Array, " m"]:
     """Each track's blob (-1: none): blobs and tracks paired most likely first, each blob's centroid inside the
-    track's gate (:func:`~heatpf_jax.memory.gates.gate_costs`), each blob and each track at most once."""
-    track_of_blob = _associate(gate_costs(tracks, blobs.xy, params), blobs.valid)
+    track's gate (:func:`~heatpf_jax.memory.gates.gate_costs`, with the step's length ``dt``), each blob and each
+    track at most once."""
+    track_of_blob = _associate(gate_costs(tracks, blobs.xy, params, dt), blobs.valid)
     m = tracks.valid.shape[0]
     hits = track_of_blob[:, None] == jnp.arange(m, dtype=jnp.int32)[None, :]
     return jnp.where(jnp.any(hits, axis=0), jnp.argmax(hits, axis=0).astype(jnp.int32), -1)
@@ -96,24 +97,28 @@ def redetect(
     buffer: Measurements,
     params: "MemoryParams",
     max_blobs: int = 8,
+    dt=None,
 ) -> tuple[Bool[Array, " m"], Float[Array, "m 2"]]:
     """The memory re-detects lost tracks on its own (Olufs et al.: "the long-term memory allows to re-detect
     vanished objects"): the blobs in ``buffer`` (:func:`find_blobs`) are paired with every track, most likely pairs
     first, each blob's centroid inside the track's gate around its *prediction*; a lost track is re-detected at
     its blob when that blob weighs ``memory_min_support`` and ``memory_redetect_share`` of the track's usual blob
     (``TrackTable.blob``: a speck of clutter is not the ball that was there). A blob outside the gate, or one
-    a static distractor's track explains better, never re-detects it, however uncertain the track has grown.
+    a static distractor's track explains better, never re-detects it, however uncertain the track has grown; given
+    the step's length ``dt`` (the tracks predicted by it), neither does a blob a lost rolling track cannot have
+    reached (:func:`~heatpf_jax.memory.gates.motion_consistent`).
 
     Returns:
         ``(redetected [M], centroid [M, 2])``.
     """
-    again, centroid, _, _ = _redetect(complete_tracks(tracks), lost, find_blobs(buffer, params, max_blobs), params)
+    again, centroid, _, _ = _redetect(complete_tracks(tracks), lost, find_blobs(buffer, params, max_blobs), params,
+                                      dt)
     return again, centroid
 
 
-def _redetect(tracks: TrackTable, lost, blobs: Blobs, params: "MemoryParams"):
+def _redetect(tracks: TrackTable, lost, blobs: Blobs, params: "MemoryParams", dt=None):
     """:func:`redetect` on found blobs; also every track's blob weight ``[M]`` and blob index ``[M]``."""
-    j = _blob_of_track(tracks, blobs, params)
+    j = _blob_of_track(tracks, blobs, params, dt)
     jj = jnp.maximum(j, 0)
     weight = jnp.where(j >= 0, blobs.weight[jj], 0.0)
     centroid = jnp.where((j >= 0)[:, None], blobs.xy[jj], tracks.mean[:, :2])

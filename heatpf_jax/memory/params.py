@@ -5,6 +5,7 @@ What each number does is described step by step in :mod:`heatpf_jax.memory`.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 __all__ = ["MemoryParams"]
@@ -34,6 +35,10 @@ class MemoryParams(NamedTuple):
             the ray by its footprint (:func:`~heatpf_jax.memory.blobs.find_blobs`).
         memory_redetect_share: the memory re-detects a track on its own only on a blob of at least this share of
             the track's usual blob weight (``TrackTable.blob``).
+        memory_lost_turn: the largest turn, radians, a lost rolling track's path may have taken: a point outside
+            the cone of this half-angle around its motion from where it was last seen (widened by the observation
+            noise) does not move it (:func:`~heatpf_jax.memory.gates.motion_consistent`); ``pi / 2``, the default,
+            refuses only what lies behind: a rolling ball does not roll back.
     """
 
     memory_forget: float = 2.0
@@ -51,3 +56,4 @@ class MemoryParams(NamedTuple):
     memory_blob_radius: float = 0.1
     memory_lost_accel_std: float = 0.5
     memory_redetect_share: float = 0.3
+    memory_lost_turn: float = math.pi / 2

@@ -15,8 +15,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from heatpf_jax.measurements import Measurements
-from heatpf_jax.memory.blobs import redetect
-from heatpf_jax.memory.candidates import candidates_from, observed_blob
+from heatpf_jax.memory.blobs import find_blobs, redetect
+from heatpf_jax.memory.candidates import blob_under, candidates_from, observed_support
 from heatpf_jax.memory.params import MemoryParams
 from heatpf_jax.memory.predict import predict_tracks
 from heatpf_jax.memory.table import TrackTable, complete_tracks, empty_tracks, lost_tracks
@@ -112,6 +112,7 @@ class TrackMemory:
             memory_blob_radius=positive(trainable=False),
             memory_lost_accel_std=positive(),
             memory_redetect_share=unit_interval(trainable=False),
+            memory_lost_turn=positive(trainable=False),
         )
 
     def validate(self) -> None:
@@ -138,10 +139,12 @@ class TrackMemory:
     ) -> TrackTable:
         """One step of the memory from this step's modes (or estimate), buffer and ego-motion."""
         cand_xy, cand_valid = candidates_from(modes, estimate_mean)
-        support, centre = observed_blob(cand_xy, buffer, params.memory_support_radius)
+        support = observed_support(cand_xy, buffer, params.memory_support_radius)
         observed = cand_valid & (support >= params.memory_min_support)
-        # What the memory observes is the blob under a candidate, not the particles' mean: a cloud on its way
-        # from a vanished ball to a distractor is on the distractor's blob, or on none.
+        # What the memory observes is a blob under a candidate, not the particles' mean: a cloud on its way
+        # from a vanished ball to a distractor is on the distractor's blob, on the ball's, or on none.
+        blobs = find_blobs(buffer, params, self.max_blobs)
+        centre = blob_under(cand_xy, buffer, blobs.member, blobs.xy, params.memory_support_radius)
         cand_xy = jnp.where(observed[:, None], centre, cand_xy)
         return update_tracks(tracks, cand_xy, observed, jnp.asarray(dt, jnp.float32), ego, params, buffer,
                              estimate=estimate_mean, max_births=self.max_births, max_blobs=self.max_blobs)
@@ -160,5 +163,5 @@ class TrackMemory:
         lost = lost_tracks(tracks, params.memory_confirm) & (tracks.age > 0)  # unseen last step, by anyone
         predicted = predict_tracks(tracks, jnp.asarray(dt, jnp.float32), ego, params.memory_accel_std,
                                    params.memory_friction, params.memory_lost_accel_std)
-        again, centroid = redetect(predicted, lost, buffer, params, self.max_blobs)
+        again, centroid = redetect(predicted, lost, buffer, params, self.max_blobs, dt=jnp.asarray(dt, jnp.float32))
         return Recall(redetected=again, xy=centroid, hits=tracks.hits, ball=tracks.ball)

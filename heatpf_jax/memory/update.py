@@ -96,7 +96,7 @@ def update_tracks(
                             params.memory_lost_accel_std)
     m = tracks.valid.shape[0]
     # Candidates -> tracks, inside the gates only; each track takes at most one candidate.
-    track_of = _associate(gate_costs(tracks, cand_xy, params), observed)
+    track_of = _associate(gate_costs(tracks, cand_xy, params, dt), observed)
     hit = jnp.zeros((m,), bool)
     z_of = jnp.zeros((m, 2), jnp.float32)
     for k in range(cand_xy.shape[0]):
@@ -110,7 +110,7 @@ def update_tracks(
     blobs = None
     if buffer is not None:  # the memory's own detections: a track's blob re-detects it
         blobs = find_blobs(buffer, params, max_blobs)
-        again, centroid, weight, j = _redetect(tracks, ~hit, blobs, params)
+        again, centroid, weight, j = _redetect(tracks, ~hit, blobs, params, dt)
         z_of = jnp.where(again[:, None], centroid, z_of)
         hit = hit | again
         seen = hit & (j >= 0)
@@ -129,10 +129,12 @@ def update_tracks(
         blob=blob,
     )
     spawn_cov = _spawn_cov(params)
+    # The ages are advanced now: the gates below take T = age for the time since a track was last observed
+    # (gate_costs with dt = 0), so a point a lost rolling track cannot have reached is clear of its gate.
     # Births from the filter's candidates outside every gate. A free slot first, else the least useful track
     # (memory-only, static, then unobserved longest); never the ball's, never one observed this step.
     for k in range(cand_xy.shape[0]):
-        clear = ~jnp.any(jnp.isfinite(gate_costs(tracks, cand_xy[k][None], params)))
+        clear = ~jnp.any(jnp.isfinite(gate_costs(tracks, cand_xy[k][None], params, 0.0)))
         usefulness = tracks.age + params.memory_forget * ((tracks.carried == 0).astype(jnp.float32)
                                                           + tracks.static.astype(jnp.float32))
         priority = jnp.where(tracks.valid, jnp.where(hit | tracks.ball, -jnp.inf, usefulness), jnp.inf)
@@ -144,7 +146,7 @@ def update_tracks(
     # free slots or those of memory-only tracks not observed this step.
     if blobs is not None and max_births > 0:
         unexplained = blobs.valid & (blobs.weight >= params.memory_birth_support) & ~jnp.any(
-            jnp.isfinite(gate_costs(tracks, blobs.xy, params)), axis=1)
+            jnp.isfinite(gate_costs(tracks, blobs.xy, params, 0.0)), axis=1)
         order = jnp.argsort(-jnp.where(unexplained, blobs.weight, -1.0), stable=True)
         for b in range(min(max_births, max_blobs)):
             i = order[b]

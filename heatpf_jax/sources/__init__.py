@@ -2,9 +2,18 @@
 
 * :mod:`~heatpf_jax.sources.pixels`: the paper's pixels, the conventional cluster centre, blob centroids;
 * :mod:`~heatpf_jax.sources.lofted`: balls in the air placed by their blob's size;
+* :mod:`~heatpf_jax.sources.blob_scale`: the detector's blob size, learned from the heat maps;
 * :mod:`~heatpf_jax.sources.image_centroids`, :mod:`~heatpf_jax.sources.image_components`: blobs in the image.
 """
 
+from heatpf_jax.sources.blob_scale import (
+    BlobScaleState,
+    blob_scale_estimate,
+    blob_scale_spread,
+    frame_log_ratio,
+    init_blob_scale,
+    update_blob_scale,
+)
 from heatpf_jax.sources.image_centroids import (
     BlobCentres,
     ball_radius_px,
@@ -35,6 +44,7 @@ from heatpf_jax.sources.pixels import (
 
 __all__ = [
     "BlobCentres",
+    "BlobScaleState",
     "BlobSizes",
     "CentroidParams",
     "CentroidSource",
@@ -46,11 +56,16 @@ __all__ = [
     "air_points",
     "ball_radius_px",
     "blob_centres",
+    "blob_scale_estimate",
+    "blob_scale_spread",
     "blob_sizes",
     "box_sums",
     "bright_pixels",
     "cluster_measurement",
     "connected_components",
+    "frame_log_ratio",
+    "init_blob_scale",
     "strongest_cluster_centre",
     "summed_area",
+    "update_blob_scale",
 ]

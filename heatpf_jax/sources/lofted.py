@@ -27,14 +27,17 @@ the peak come from an adaptive mean shift over summed-area tables
 ground ball's blob at that pixel and grows with the blob's size estimate (``reach`` stds), up to
 ``max_half_px`` pixels.
 
-The size is only as good as the detector's blob: ``blob_scale`` is a calibration constant of the detector, as
-the intrinsics are of the camera. A soft, blurred or saturated blob looks larger than ``blob_scale`` says, and a
-camera whose pitch is off by a degree or two projects a distant ground ball farther than it is (so that it too
-looks too large for its projection); on the world family (:mod:`heatpf_jax.sim.family`), whose detector's blob
-std ranges over 0.3-1.2 apparent radii and whose calibration is 1-3 degrees off, ground balls show ratios from
-below 0.1 to above 4, and this source with one fixed ``blob_scale`` misplaces them: it is therefore not a
-default, but ``FilterOptions(source="lofted")`` (``--set source=lofted``). Every function here is pure and
-jittable.
+The size is only as good as what is known of the detector's blob. ``blob_scale`` is a property of the detector (its
+blob's softness, size, saturation and blur), so by default it is learned from the heat maps themselves
+(:mod:`heatpf_jax.sources.blob_scale`): the filter carries the last ``calibration_frames`` frames' blob-size ratios
+(``FilterState.source``) and takes their median, since the ball is on the ground most of the time; ``blob_scale`` is
+then only the prior before the first blob. A detector or camera whose ground balls' sizes scatter widely (the world
+family's, :mod:`heatpf_jax.sim.family`: blob stds of 0.3-1.2 apparent radii, saturated and occluded blobs, false
+blobs twice the ball's size, a calibration error of 1-3 degrees that makes distant balls look too large for their
+projection) has no size that tells a flying ball from a ground one: a blob counts as flying only when its ratio
+also lies ``calibration_sigmas`` robust stds above that median, and while the stds exceed
+``calibration_max_spread`` no blob is placed by its size (one too large for a ground ball is refused instead).
+``LoftedSource(calibration_frames=0)`` keeps ``blob_scale`` fixed. Every function here is pure and jittable.
 """
 
 from __future__ import annotations
@@ -52,6 +55,14 @@ from heatpf_jax.camera import ground_jacobian, project_pixel, project_points
 from heatpf_jax.measurements import Measurements, downscale_heatmap
 from heatpf_jax.params import Param, interval, positive, unit_interval
 from heatpf_jax.pieces import StepInputs
+from heatpf_jax.sources.blob_scale import (
+    BlobScaleState,
+    blob_scale_estimate,
+    blob_scale_spread,
+    frame_log_ratio,
+    init_blob_scale,
+    update_blob_scale,
+)
 from heatpf_jax.sources.image_centroids import ball_radius_px, box_sums, summed_areas
 
 __all__ = ["BlobSizes", "LoftedParams", "LoftedSource", "air_points", "blob_sizes", "bright_pixels"]
@@ -78,6 +89,17 @@ class LoftedParams(NamedTuple):
             inconsistent projection, for a detector whose blob size is not known).
         reach: the mean-shift window's half-size in blob stds.
         max_half_px: the largest window half-size, pixels.
+        calibration_quantile: with ``LoftedSource.calibration_frames > 0``, the quantile of the recent frames'
+            blob-size ratios taken as the detector's ``blob_scale`` (:mod:`heatpf_jax.sources.blob_scale`; 0.5:
+            their median); ``blob_scale`` is then only the prior before the first blob.
+        calibration_sigmas: with calibration, a blob is in the air only if its ratio also lies this many robust
+            stds (:func:`~heatpf_jax.sources.blob_scale.blob_scale_spread`) above the recent frames' median: a
+            detector or camera whose ground balls' sizes scatter widely (soft, saturated or occluded blobs, a
+            calibration error that grows with range) has no size that tells a flying ball.
+        calibration_max_spread: with calibration, while the recent frames' robust std of ``log`` ratios exceeds
+            this, no blob is placed by its size (the size would place it to worse than about this share of its
+            range): a blob that is too large for a ground ball there is refused instead, as with
+            ``max_ratio = min_ratio``.
     """
 
     threshold: float = 0.3
@@ -87,6 +109,9 @@ class LoftedParams(NamedTuple):
     max_ratio: float = float("inf")
     reach: float = 3.0
     max_half_px: float = 24.0
+    calibration_quantile: float = 0.5
+    calibration_sigmas: float = 3.0
+    calibration_max_spread: float = 0.3
 
 
 class BlobSizes(NamedTuple):
@@ -264,15 +289,23 @@ class LoftedSource:
     gives the ground point under the ball its size places along the ray through its centroid, for each of its
     pixels, with the pixel's own activation as its weight and the footprint of a ground ball's pixel there.
 
+    The detector's blob size is learned from the heat maps (:mod:`heatpf_jax.sources.blob_scale`): the filter
+    carries the last ``calibration_frames`` frames' blob-size ratios (:meth:`init_state`, :meth:`measure_state`)
+    and ``LoftedParams.blob_scale`` is only the prior before the first blob; ``calibration_frames=0`` keeps
+    ``blob_scale`` fixed (the detector's size known).
+
     Attributes:
         max_measurements: slots; the strongest pixels are kept (IV-E).
         downscale: integer block-averaging of the heat map first (III-A).
         iterations: mean-shift steps of :func:`blob_sizes`.
+        calibration_frames: frames whose blob-size ratios give the detector's blob scale (0: none, the
+            fixed ``blob_scale``).
     """
 
     max_measurements: int = 1024
     downscale: int = 1
     iterations: int = 4
+    calibration_frames: int = 256
 
     @property
     def size(self) -> int:
@@ -291,6 +324,9 @@ class LoftedSource:
             max_ratio=Param(low=1.0, trainable=False, allow_inf=True),
             reach=positive(trainable=False),
             max_half_px=interval(1.0, math.inf, trainable=False),
+            calibration_quantile=unit_interval(trainable=False),
+            calibration_sigmas=Param(low=0.0, trainable=False, allow_inf=True),
+            calibration_max_spread=Param(low=0.0, trainable=False, allow_inf=True),
         )
 
     def validate(self) -> None:
@@ -298,17 +334,48 @@ class LoftedSource:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+        frames = self.calibration_frames
+        if not isinstance(frames, int) or isinstance(frames, bool) or frames < 0:
+            raise ValueError(f"calibration_frames: must be a non-negative integer, got {frames!r}")
+
+    def init_state(self) -> BlobScaleState | tuple:
+        """The filter's carried state of this source: the recent blob-size ratios (``()`` without calibration)."""
+        return init_blob_scale(self.calibration_frames) if self.calibration_frames > 0 else ()
 
     def measure(self, inputs: StepInputs, params: LoftedParams) -> Measurements:
+        """The measurements with the fixed ``params.blob_scale``."""
+        return self._measure(inputs, params, None)[0]
+
+    def measure_state(
+        self, inputs: StepInputs, params: LoftedParams, state: BlobScaleState | tuple
+    ) -> tuple[Measurements, BlobScaleState | tuple]:
+        """The measurements with the blob scale learned so far, this frame included, and the updated state."""
+        if not isinstance(state, BlobScaleState):  # no calibration: ()
+            return self.measure(inputs, params), state
+        return self._measure(inputs, params, state)
+
+    def _measure(self, inputs: StepInputs, params: LoftedParams, state: BlobScaleState | None):
         heatmap, intrinsics = downscale_heatmap(inputs.heatmap, inputs.intrinsics, self.downscale)
         pose, radius = inputs.cam_to_base, inputs.plane_height
         uv, passes, weight = bright_pixels(heatmap, threshold=params.threshold, max_measurements=self.max_measurements)
+        scale = params.blob_scale
+        if state is not None:
+            scale = blob_scale_estimate(state, params.blob_scale, params.calibration_quantile)
         blobs = blob_sizes(heatmap, uv, intrinsics, pose, threshold=params.threshold, plane_height=radius,
-                           blob_scale=params.blob_scale, reach=params.reach, max_half_px=params.max_half_px,
+                           blob_scale=scale, reach=params.reach, max_half_px=params.max_half_px,
                            iterations=self.iterations)
-        apparent = blobs.std_px / params.blob_scale
-        in_air = apparent > params.min_ratio * blobs.ground_radius_px  # above the horizon: ground radius 0
-        refused = apparent > params.max_ratio * blobs.ground_radius_px
+        if state is not None:  # this frame's ratio joins the estimate before its blobs are judged
+            state = update_blob_scale(state, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
+            scale = blob_scale_estimate(state, params.blob_scale, params.calibration_quantile)
+        apparent = blobs.std_px / scale
+        min_ratio, max_ratio = params.min_ratio, params.max_ratio
+        if state is not None:
+            spread = blob_scale_spread(state)
+            min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * spread))
+            # Sizes that scatter this widely place no ball by its size: a blob too large for a ground ball is refused.
+            max_ratio = jnp.where(spread > params.calibration_max_spread, min_ratio, max_ratio)
+        in_air = apparent > min_ratio * blobs.ground_radius_px  # above the horizon: ground radius 0
+        refused = apparent > max_ratio * blobs.ground_radius_px
         centres, sized = air_points(blobs.uv, apparent, intrinsics, pose, radius)
         air_xy = centres[:, :2]
         on_plane = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))
@@ -321,6 +388,12 @@ class LoftedSource:
         air_ok = air_ok & (depth > 0.0) & ~refused
         look_uv = jnp.where(in_air[:, None], ground_uv, uv)
         footprint = jax.vmap(ground_jacobian, in_axes=(0, None, None, None))(look_uv, intrinsics, pose, radius)
+        # Each pixel of a flying ball's blob lies, about the point under the ball, where the same pixel of a ground
+        # ball's blob there would put it: the blob is measured as that ground ball would be, not as one point that
+        # all of its pixels (each a measurement) pile onto.
+        shrink = ball_radius_px(ground_uv, intrinsics, pose, radius) / jnp.maximum(apparent, 1e-6)
+        offset = (uv - blobs.uv) * shrink[:, None]
+        air_xy = air_xy + jnp.einsum("mij,mj->mi", footprint, offset)
         xy = jnp.where(in_air[:, None], air_xy, plane_xy)
         valid = passes & jnp.where(in_air, air_ok, plane_ok)
         pad = int(self.max_measurements) - uv.shape[0]
@@ -329,4 +402,4 @@ class LoftedSource:
             weight=jnp.pad(jnp.where(valid, weight, 0.0), (0, pad)),
             valid=jnp.pad(valid, (0, pad)),
             footprint=jnp.pad(jnp.where(valid[:, None, None], footprint, 0.0), ((0, pad), (0, 0), (0, 0))),
-        )
+        ), state

@@ -31,9 +31,12 @@ def _pose(height: float, pitch_deg: float, yaw: float = 0.0) -> np.ndarray:
     return pose
 
 
-def _sphere_heatmap(rng, centre: np.ndarray, pose: np.ndarray, peak: float = 0.9, noise: float = 0.02) -> np.ndarray:
+def _sphere_heatmap(
+    rng, centre: np.ndarray, pose: np.ndarray, peak: float = 0.9, noise: float = 0.02, scale: float = 0.6
+) -> np.ndarray:
     """A detector's blob of a sphere, by brute force: the pixels whose rays pass within R of the centre (its exact
-    silhouette), then a Gaussian of std 0.6 times the silhouette's equivalent radius at the silhouette's centroid."""
+    silhouette), then a Gaussian of std ``scale`` (0.6) times the silhouette's equivalent radius at the silhouette's
+    centroid."""
     h, w = SHAPE
     vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
     rays = np.stack([(uu - INTRINSICS[2]) / INTRINSICS[0], (vv - INTRINSICS[3]) / INTRINSICS[1], np.ones_like(uu)], -1)
@@ -46,7 +49,7 @@ def _sphere_heatmap(rng, centre: np.ndarray, pose: np.ndarray, peak: float = 0.9
     assert inside.sum() >= 4, "the sphere must be in view"
     u0, v0 = uu[inside].mean(), vv[inside].mean()
     rho = np.sqrt(inside.sum() / np.pi)
-    act = peak * np.exp(-0.5 * ((uu - u0) ** 2 + (vv - v0) ** 2) / (0.6 * rho) ** 2)
+    act = peak * np.exp(-0.5 * ((uu - u0) ** 2 + (vv - v0) ** 2) / (scale * rho) ** 2)
     return np.clip(act + noise * rng.standard_normal(SHAPE), 0.0, 1.0).astype(np.float32)
 
 

@@ -1,0 +1,109 @@
+"""The detector's blob scale learned from the heat maps (NumPy references; spheres drawn by brute force)."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax.sources.blob_scale import (
+    blob_scale_estimate,
+    blob_scale_spread,
+    frame_log_ratio,
+    init_blob_scale,
+    update_blob_scale,
+)
+from heatpf_jax.sources.lofted import LoftedParams, LoftedSource
+from tests.sources.test_lofted import RADIUS, _inputs, _pose, _sphere_heatmap, _weighted_xy
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The lower weighted median by brute force: the smallest value whose cumulative weight reaches half."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.nonzero(cum >= 0.5 * cum[-1])[0][0]])
+
+
+def test_frame_log_ratio_is_the_weighted_median():
+    rng = np.random.default_rng(21)
+    for _ in range(5):
+        m = 40
+        std = rng.uniform(0.5, 6.0, m).astype(np.float32)
+        ground = rng.uniform(1.0, 8.0, m).astype(np.float32)
+        weight = rng.uniform(0.3, 1.0, m).astype(np.float32)
+        valid = rng.uniform(size=m) > 0.3
+        ground[rng.uniform(size=m) < 0.1] = 0.0  # above the horizon: never counted
+        ok = valid & (ground > 0)
+        got, has = frame_log_ratio(std, ground, weight, valid)
+        assert bool(has)
+        expected = _weighted_median(np.log(std[ok].astype(np.float64) / ground[ok]), weight[ok].astype(np.float64))
+        assert float(got) == pytest.approx(expected, abs=1e-5)
+    _, has = frame_log_ratio(np.ones(4), np.zeros(4), np.ones(4), np.ones(4, bool))
+    assert not bool(has)
+
+
+def test_ring_buffer_and_quantile_against_numpy():
+    rng = np.random.default_rng(4)
+    state = init_blob_scale(8)
+    assert float(blob_scale_estimate(state, 0.6)) == pytest.approx(0.6)  # the prior before any frame
+    update = jax.jit(update_blob_scale)
+    kept = []
+    for i in range(13):
+        value = float(rng.normal(-0.4, 0.3))
+        has = i % 4 != 3  # every fourth frame has no blob: nothing is stored
+        state = update(state, value, has)
+        if has:
+            kept.append(value)
+        stored = np.sort(np.asarray(state.log_ratios)[np.asarray(state.filled)])
+        np.testing.assert_allclose(stored, np.sort(np.float32(kept[-8:])), rtol=1e-6)
+        for q in (0.2, 0.5, 0.9):
+            expected = np.exp(np.quantile(np.float32(kept[-8:]), q, method="lower"))
+            assert float(blob_scale_estimate(state, 0.6, q)) == pytest.approx(expected, rel=1e-5)
+        recent = np.float32(kept[-8:])
+        centre = np.quantile(recent, 0.5, method="lower")
+        spread = 1.4826 * np.quantile(np.abs(recent - centre), 0.5, method="lower") if len(recent) > 1 else 0.0
+        assert float(blob_scale_spread(state)) == pytest.approx(spread, rel=1e-5, abs=1e-7)
+
+
+def test_a_detector_with_larger_blobs_is_learned():
+    """A detector whose blobs are 1.7 times the simulator's (std 1.0 radii, not 0.6): with the fixed prior a ball
+    on the ground reads as a ball in the air and is placed metres nearer the robot; after a few frames of ground
+    balls the learned scale is the detector's, a ground ball gives the paper's measurements again, and a ball in
+    the air is still placed under it."""
+    rng = np.random.default_rng(17)
+    source = LoftedSource(max_measurements=256, calibration_frames=32)
+    params = LoftedParams()
+    measure = jax.jit(source.measure_state)
+    pose = _pose(0.6, 25.0, yaw=0.1)
+    state = source.init_state()
+    ground = np.array([2.4, 0.2])
+    heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
+    fixed = source.measure(_inputs(heat, pose), params)
+    assert np.linalg.norm(_weighted_xy(fixed) - ground) > 0.5  # the prior 0.6 takes it for a ball 1.7x nearer
+    for _ in range(6):
+        spot = np.array([rng.uniform(1.5, 4.0), rng.uniform(-1.0, 1.0)])
+        heat = _sphere_heatmap(rng, np.array([*spot, RADIUS]), pose, scale=1.0)
+        m, state = measure(_inputs(heat, pose), params, state)
+    learned = float(blob_scale_estimate(state, params.blob_scale, params.calibration_quantile))
+    assert learned == pytest.approx(1.0, rel=0.12)
+    heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
+    m, _ = measure(_inputs(heat, pose), params, state)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    np.testing.assert_allclose(np.asarray(m.xy), np.asarray(paper.xy), atol=1e-5)
+    assert np.linalg.norm(_weighted_xy(m) - ground) < 0.05 * np.linalg.norm(ground)
+    air = np.array([2.8, -0.3])
+    heat = _sphere_heatmap(rng, np.array([*air, 0.6]), pose, scale=1.0)
+    m, after = measure(_inputs(heat, pose), params, state)
+    assert np.linalg.norm(_weighted_xy(m) - air) < 0.1 * np.linalg.norm(air)
+    # One flight does not move the estimate: the median of the last frames is still the ground balls'.
+    assert float(blob_scale_estimate(after, params.blob_scale)) == pytest.approx(learned, rel=0.05)
+
+
+def test_the_filter_carries_the_learned_scale():
+    model = hp.build("heatmap").model  # its source: LoftedSource
+    assert isinstance(model.init(jax.random.key(0), model.default_params()).source.log_ratios, jax.Array)
+    assert hp.build("paper").model.init(jax.random.key(0), hp.build("paper").params).source == ()
+    assert LoftedSource(calibration_frames=0).init_state() == ()
+    with pytest.raises(ValueError, match="^calibration_frames:"):
+        LoftedSource(calibration_frames=-1).validate()
