@@ -10,10 +10,11 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``paper``: the 2019 filter (static position, eq. 1, systematic resampling, explorers);
 * ``paper + velocity``: the same with the constant-velocity motion model;
 * ``velocity + mean-shift resampling``: that with :class:`heatpf_jax.resampling.ClusterResampling`;
-* ``heatmap``: the product's defaults (velocity, range-aware template over k = 10);
+* ``heatmap``: the product's defaults (velocity, range-aware template over k = 10, the lofted source with its
+  blob scale learned);
+* ``heatmap (pixel source)``: the same with the paper's source, every pixel where it projects (``--set
+  source=pixels``, the ``heatmap`` before the lofted source);
 * ``heatmap (centroid source)``: the same with every pixel at its blob's centroid (``--set source=centroids``);
-* ``heatmap (lofted source)``: the same with a blob larger than a ground ball there placed under the ball by its
-  size (``--set source=lofted``, :class:`heatpf_jax.sources.lofted.LoftedSource`);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
@@ -56,7 +57,7 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
         out[name] = tuple(hp.build(name, options))
     # heatmap with every pixel at its blob's centroid (--set source=centroids).
     out["heatmap (centroid source)"] = tuple(hp.build("heatmap", options._replace(source="centroids")))
-    out["heatmap (lofted source)"] = tuple(hp.build("heatmap", options._replace(source="lofted")))
+    out["heatmap (pixel source)"] = tuple(hp.build("heatmap", options._replace(source="pixels")))
     with_memory = options._replace(memory="tracks")
     for name in ("paper", "heatmap", "extended"):
         out[f"{name} + memory"] = tuple(hp.build(name, with_memory))

@@ -36,7 +36,9 @@ family's, :mod:`heatpf_jax.sim.family`: blob stds of 0.3-1.2 apparent radii, sat
 blobs twice the ball's size, a calibration error of 1-3 degrees that makes distant balls look too large for their
 projection) has no size that tells a flying ball from a ground one: a blob counts as flying only when its ratio
 also lies ``calibration_sigmas`` robust stds above that median, and while the stds exceed
-``calibration_max_spread`` no blob is placed by its size (one too large for a ground ball is refused instead).
+``calibration_max_spread``, or while the learned scale lies outside ``[min_blob_scale, max_blob_scale]`` (what
+the frames show is speckle, clutter or large false blobs, not the ball), no blob is placed by its size: every pixel is
+measured where it projects, as the paper's source does.
 ``LoftedSource(calibration_frames=0)`` keeps ``blob_scale`` fixed. Every function here is pure and jittable.
 """
 
@@ -98,8 +100,11 @@ class LoftedParams(NamedTuple):
             calibration error that grows with range) has no size that tells a flying ball.
         calibration_max_spread: with calibration, while the recent frames' robust std of ``log`` ratios exceeds
             this, no blob is placed by its size (the size would place it to worse than about this share of its
-            range): a blob that is too large for a ground ball there is refused instead, as with
-            ``max_ratio = min_ratio``.
+            range): every pixel is measured where it projects, as the paper's source does.
+        min_blob_scale: with calibration, a learned ``blob_scale`` below this is no detector's ball blob (the
+            frames' ratios are those of speckle or clutter, which outnumber a distant ball's pixels): no blob is then
+            placed by its size. 0.25: a blob std of a quarter of the ball's radius.
+        max_blob_scale: the same above this (large false blobs outnumber the ball's). 2: a blob std of two radii.
     """
 
     threshold: float = 0.3
@@ -112,6 +117,8 @@ class LoftedParams(NamedTuple):
     calibration_quantile: float = 0.5
     calibration_sigmas: float = 3.0
     calibration_max_spread: float = 0.3
+    min_blob_scale: float = 0.25
+    max_blob_scale: float = 2.0
 
 
 class BlobSizes(NamedTuple):
@@ -327,6 +334,8 @@ class LoftedSource:
             calibration_quantile=unit_interval(trainable=False),
             calibration_sigmas=Param(low=0.0, trainable=False, allow_inf=True),
             calibration_max_spread=Param(low=0.0, trainable=False, allow_inf=True),
+            min_blob_scale=positive(trainable=False),
+            max_blob_scale=positive(trainable=False, allow_inf=True),
         )
 
     def validate(self) -> None:
@@ -368,14 +377,17 @@ class LoftedSource:
             state = update_blob_scale(state, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
             scale = blob_scale_estimate(state, params.blob_scale, params.calibration_quantile)
         apparent = blobs.std_px / scale
-        min_ratio, max_ratio = params.min_ratio, params.max_ratio
+        min_ratio = params.min_ratio
         if state is not None:
             spread = blob_scale_spread(state)
             min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * spread))
-            # Sizes that scatter this widely place no ball by its size: a blob too large for a ground ball is refused.
-            max_ratio = jnp.where(spread > params.calibration_max_spread, min_ratio, max_ratio)
+            # What the frames show is no detector's ball (speckle, clutter or large false blobs outnumber it), or its
+            # sizes scatter too widely: no blob is placed by its size, every pixel is measured as the paper's.
+            credible = (spread <= params.calibration_max_spread) & (scale >= params.min_blob_scale) & (
+                scale <= params.max_blob_scale)
+            min_ratio = jnp.where(credible, min_ratio, jnp.inf)
         in_air = apparent > min_ratio * blobs.ground_radius_px  # above the horizon: ground radius 0
-        refused = apparent > max_ratio * blobs.ground_radius_px
+        refused = apparent > params.max_ratio * blobs.ground_radius_px
         centres, sized = air_points(blobs.uv, apparent, intrinsics, pose, radius)
         air_xy = centres[:, :2]
         on_plane = jax.vmap(project_pixel, in_axes=(0, None, None, None, None))

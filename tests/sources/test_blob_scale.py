@@ -107,3 +107,33 @@ def test_the_filter_carries_the_learned_scale():
     assert LoftedSource(calibration_frames=0).init_state() == ()
     with pytest.raises(ValueError, match="^calibration_frames:"):
         LoftedSource(calibration_frames=-1).validate()
+
+
+@pytest.mark.parametrize(
+    "ratios",
+    [np.full(16, np.log(0.05)),  # speckle's or clutter's ratios: no detector's ball blob
+     np.full(16, np.log(3.0)),  # large false blobs'
+     np.log(0.6) + np.linspace(-1.0, 1.0, 16)],  # sizes that scatter widely
+)
+def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
+    """When what the frames show is no detector's ball (a learned scale outside [0.25, 2]) or its sizes scatter too
+    widely to tell a flying ball, every pixel is measured where it projects: the paper's measurements, exactly."""
+    source = LoftedSource(max_measurements=256, calibration_frames=16)
+    state = source.init_state()
+    for value in ratios:
+        state = update_blob_scale(state, value, True)
+    rng = np.random.default_rng(5)
+    pose = _pose(0.6, 15.0)
+    heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose)  # a ball in the air, 0.5 m up
+    inputs = _inputs(heat, pose)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    m, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
+    valid_rows = lambda x: np.sort(np.asarray(x.xy)[np.asarray(x.valid)], axis=0)  # noqa: E731
+    assert int(np.sum(m.valid)) == int(np.sum(paper.valid)) > 0
+    np.testing.assert_allclose(valid_rows(m), valid_rows(paper), atol=1e-5)
+    # A credible scale (the simulator's 0.6, ratios that agree) places the same ball under itself.
+    state = source.init_state()
+    for value in np.log(0.6) + 0.02 * rng.standard_normal(16):
+        state = update_blob_scale(state, value, True)
+    placed, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
+    assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
