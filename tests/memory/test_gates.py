@@ -4,21 +4,15 @@ the place where the ball vanished (also one nearer the camera, where the occlude
 ``memory_lost_turn`` below 90 degrees, beside its line, does not move the lost ball's track, opens a track of its
 own and leaves the ball's flag where it is; a blob on the line ahead does move it (a Kalman update, in NumPy)."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heatpf_jax.measurements import Measurements
 from heatpf_jax.memory import MemoryParams, TrackMemory, empty_tracks, gate_costs
 from heatpf_jax.memory.gates import motion_consistent
 from heatpf_jax.memory.predict import predict_tracks
-from heatpf_jax.memory.update import update_tracks
 
-PARAMS = jax.tree.map(jnp.asarray, MemoryParams())
-DT = jnp.float32(0.1)
-EGO = jnp.zeros(3, jnp.float32)
-N_BUF = 32
-_update = jax.jit(update_tracks)
+# The hand-made tables, blobs and the jitted update (one compilation) of the memory's other tests.
+from tests.memory.test_distractors import DT, EGO, PARAMS, _blobs, _table, _update
 
 
 def _np_consistent(mean, age, hits, static, valid, xy, dt, p: MemoryParams):
@@ -43,36 +37,6 @@ def _np_consistent(mean, age, hits, static, valid, xy, dt, p: MemoryParams):
             lateral = np.inf if turn >= np.pi / 2 else m_ + np.tan(turn) * max(a, 0.0)
             out[i, m] = a >= -m_ and b <= lateral
     return out
-
-
-def _table(rows, capacity=4):
-    """A table from ``rows`` of ``dict(mean=(x, y, vx, vy), var=(pos, vel), age, hits, ball, static)``."""
-    t = empty_tracks(capacity)
-    for i, r in enumerate(rows):
-        pos_var, vel_var = r.get("var", (0.01, 0.04))
-        t = t._replace(
-            id=t.id.at[i].set(i + 1),
-            valid=t.valid.at[i].set(True),
-            mean=t.mean.at[i].set(jnp.asarray(r["mean"], jnp.float32)),
-            cov=t.cov.at[i].set(jnp.diag(jnp.asarray([pos_var, pos_var, vel_var, vel_var], jnp.float32))),
-            age=t.age.at[i].set(r.get("age", 0.0)),
-            hits=t.hits.at[i].set(r.get("hits", 10)),
-            ball=t.ball.at[i].set(r.get("ball", False)),
-            static=t.static.at[i].set(r.get("static", False)),
-            carried=t.carried.at[i].set(r.get("hits", 10)),
-            missed=t.missed.at[i].set(r.get("age", 0.0)),
-        )
-    return t._replace(next_id=jnp.int32(len(rows) + 1))
-
-
-def _blobs(*centres, weight=1.0, pixels=8) -> Measurements:
-    xy = np.zeros((N_BUF, 2), np.float32)
-    valid = np.zeros(N_BUF, bool)
-    for b, c in enumerate(centres):
-        xy[b * pixels : (b + 1) * pixels] = c
-        valid[b * pixels : (b + 1) * pixels] = True
-    return Measurements(jnp.asarray(xy), jnp.where(jnp.asarray(valid), weight, 0.0).astype(jnp.float32),
-                        jnp.asarray(valid))
 
 
 def test_motion_consistent_against_numpy(rng):
