@@ -285,13 +285,15 @@ class Filter(NamedTuple):
 
     def _measure(self, carried, inputs: StepInputs, params) -> tuple[Measurements, Any]:
         """The source's measurements of this step's heat map (none without one), and what the source carries: a
-        source with ``measure_state`` (:class:`~heatpf_jax.pieces.StatefulSource`) updates it only on a heat map."""
+        source with ``measure_state`` (:class:`~heatpf_jax.pieces.StatefulSource`) updates it on a heat map, and
+        through ``carry_state``, where it has one, on a step without."""
         size = self.source.size
         if hasattr(self.source, "measure_state"):
+            carry = getattr(self.source, "carry_state", lambda _inputs, _params, c: c)
             return lax.cond(
                 inputs.has_heatmap,
                 lambda c: self.source.measure_state(inputs, params, c),
-                lambda c: (empty_measurements(size), c),
+                lambda c: (empty_measurements(size), carry(inputs, params, c)),
                 carried,
             )
         new = lax.cond(

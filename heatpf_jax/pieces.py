@@ -98,7 +98,9 @@ class MeasurementSource(_Piece, Protocol):
 class StatefulSource(MeasurementSource, Protocol):
     """A source that carries something from frame to frame (``FilterState.source``), e.g. what it has learned
     of the detector (:class:`~heatpf_jax.sources.lofted.LoftedSource`'s blob scale). The filter calls
-    ``measure_state`` instead of ``measure``, only on steps with a heat map."""
+    ``measure_state`` instead of ``measure``, only on steps with a heat map; on a step without, it calls the
+    source's ``carry_state(inputs, params, state)`` where the source has one (e.g. to move what it remembers with
+    the robot), and keeps the state unchanged otherwise."""
 
     def init_state(self) -> Any:
         """The carried state before the first frame (a pytree of fixed shape)."""

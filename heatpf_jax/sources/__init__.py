@@ -3,6 +3,7 @@
 * :mod:`~heatpf_jax.sources.pixels`: the paper's pixels, the conventional cluster centre, blob centroids;
 * :mod:`~heatpf_jax.sources.lofted`: balls in the air placed by their blob's size;
 * :mod:`~heatpf_jax.sources.blob_scale`: the detector's blob size, learned from the heat maps;
+* :mod:`~heatpf_jax.sources.hover`: a ball does not hover (a blob read as flying that stays put lies on the ground);
 * :mod:`~heatpf_jax.sources.image_centroids`, :mod:`~heatpf_jax.sources.image_components`: blobs in the image.
 """
 
@@ -30,7 +31,9 @@ from heatpf_jax.sources.lofted import (
     BlobSizes,
     LoftedParams,
     LoftedSource,
+    LoftedState,
     air_points,
+    blob_elongation,
     blob_sizes,
     bright_pixels,
 )
@@ -51,11 +54,13 @@ __all__ = [
     "ClusterCentreSource",
     "LoftedParams",
     "LoftedSource",
+    "LoftedState",
     "PixelSource",
     "SourceParams",
     "air_points",
     "ball_radius_px",
     "blob_centres",
+    "blob_elongation",
     "blob_scale_estimate",
     "blob_scale_spread",
     "blob_sizes",

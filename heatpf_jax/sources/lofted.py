@@ -39,7 +39,15 @@ also lies ``calibration_sigmas`` robust stds above that median, and while the st
 ``calibration_max_spread``, or while the learned scale lies outside ``[min_blob_scale, max_blob_scale]`` (what
 the frames show is speckle, clutter or large false blobs, not the ball), no blob is placed by its size: every pixel is
 measured where it projects, as the paper's source does.
-``LoftedSource(calibration_frames=0)`` keeps ``blob_scale`` fixed. Every function here is pure and jittable.
+``LoftedSource(calibration_frames=0)`` keeps ``blob_scale`` fixed.
+
+A sphere's blob is round, so a blob that its mass reads as flying is sized by its minor std,
+``s / sqrt(e)`` with ``e`` its elongation (:func:`blob_elongation`, the square root of its second moments' eigenvalue
+ratio): two ground blobs side by side that the window took as one (a ball beside a penalty mark, 0.45 m behind it
+along the ray), or a blob blurred by motion, are stretched along one axis and keep a ground ball's minor std. And a
+ball does not hover (:mod:`heatpf_jax.sources.hover`): a blob read as flying at the place, moved with the robot,
+where one was read so 0.25-1 s before lies on the ground (a thing larger than the ball) and is measured where it
+projects. Every function here is pure and jittable.
 """
 
 from __future__ import annotations
@@ -65,9 +73,27 @@ from heatpf_jax.sources.blob_scale import (
     init_blob_scale,
     update_blob_scale,
 )
+from heatpf_jax.sources.hover import (
+    HoverState,
+    age_hover,
+    air_places,
+    hovering,
+    init_hover,
+    place_points,
+    remember_hover,
+)
 from heatpf_jax.sources.image_centroids import ball_radius_px, box_sums, summed_areas
 
-__all__ = ["BlobSizes", "LoftedParams", "LoftedSource", "air_points", "blob_sizes", "bright_pixels"]
+__all__ = [
+    "BlobSizes",
+    "LoftedParams",
+    "LoftedSource",
+    "LoftedState",
+    "air_points",
+    "blob_elongation",
+    "blob_sizes",
+    "bright_pixels",
+]
 
 _MIN_STD_PX = 0.7  # a blob is never thinner than this (pixel quantisation)
 PEAK_RADIUS_PX = 3  # a blob's peak is the largest activation this close to its centroid
@@ -105,6 +131,12 @@ class LoftedParams(NamedTuple):
             frames' ratios are those of speckle or clutter, which outnumber a distant ball's pixels): no blob is then
             placed by its size. 0.25: a blob std of a quarter of the ball's radius.
         max_blob_scale: the same above this (large false blobs outnumber the ball's). 2: a blob std of two radii.
+        hover_px: with ``LoftedSource.hover_frames > 0``, a blob read as flying whose centroid lies within this many
+            pixels of where a blob read as flying was seen ``hover_min_age`` to ``hover_max_age`` seconds ago (moved
+            with the robot) has hovered: it lies on the ground, and is measured where it projects
+            (:mod:`heatpf_jax.sources.hover`).
+        hover_min_age: seconds; a ball in flight has crossed more than ``hover_px`` in this time.
+        hover_max_age: seconds; places older than this are forgotten.
     """
 
     threshold: float = 0.3
@@ -119,6 +151,23 @@ class LoftedParams(NamedTuple):
     calibration_max_spread: float = 0.3
     min_blob_scale: float = 0.25
     max_blob_scale: float = 2.0
+    hover_px: float = 3.0
+    hover_min_age: float = 0.25
+    hover_max_age: float = 1.0
+
+
+class LoftedState(NamedTuple):
+    """What :class:`LoftedSource` carries from frame to frame (``FilterState.source``).
+
+    Attributes:
+        scale: the recent frames' blob-size ratios (:class:`~heatpf_jax.sources.blob_scale.BlobScaleState`),
+            ``()`` without calibration.
+        hover: the recent places of blobs read as flying (:class:`~heatpf_jax.sources.hover.HoverState`), ``()``
+            without the test.
+    """
+
+    scale: BlobScaleState | tuple = ()
+    hover: HoverState | tuple = ()
 
 
 class BlobSizes(NamedTuple):
@@ -233,6 +282,68 @@ def blob_sizes(
     return BlobSizes(uv=uv, std_px=std, peak=peak, ground_radius_px=ground)
 
 
+def blob_elongation(
+    heatmap: Float[ArrayLike, "h w"],
+    uv: Float[ArrayLike, "m 2"],
+    half: Float[ArrayLike, " m"],
+    *,
+    threshold: Float[ArrayLike, ""],
+    samples: int = 7,
+) -> Float[Array, " m"]:
+    """The ratio of each blob's major to its minor std, from its second moments above the threshold.
+
+    The heat map is sampled (bilinearly) on a ``samples x samples`` grid spanning ``half`` pixels each side of
+    ``uv`` (2.5 mass-based stds in :class:`LoftedSource`); each sample weighs ``max(h - threshold, 0)``, which
+    falls to zero at the blob's edge, so that a coarse grid still measures it. The weighted covariance of the
+    samples' offsets has eigenvalues ``l1 >= l2``, and the elongation is ``sqrt(l1 / l2)``. For a Gaussian blob of
+    stds ``a >= b`` the weight is a function of the blob's quadratic form alone, so the ratio is ``a / b`` whatever the
+    threshold or the peak, and ``std_px / sqrt(elongation)``, with ``std_px`` the mass-based ``sqrt(a b)``, is its
+    minor std.
+
+    Args:
+        heatmap: ``[H, W]`` activations.
+        uv: ``[M, 2]`` blob centroids (column, row).
+        half: ``[M]`` the grid's half-spans, pixels.
+        threshold: activations below it are not part of a blob.
+        samples: static grid points per axis.
+
+    Returns:
+        ``[M]`` elongations; 1 for a window with no activation above the threshold, or one that the image's border
+        cuts.
+    """
+    heat = jnp.asarray(heatmap, jnp.float32)
+    h, w = heat.shape
+    uv = jnp.asarray(uv, jnp.float32)
+    half = jnp.asarray(half, jnp.float32)
+    n = int(samples)
+    grid = jnp.linspace(-1.0, 1.0, n, dtype=jnp.float32)
+    x = jnp.broadcast_to(grid[None, None, :] * half[:, None, None], (uv.shape[0], n, n))  # [M, S, S] column offsets
+    y = jnp.broadcast_to(grid[None, :, None] * half[:, None, None], (uv.shape[0], n, n))
+    fu = uv[:, 0, None, None] + x
+    fv = uv[:, 1, None, None] + y
+    # A blob that the image's border cuts is stretched along the border: its second moments say nothing of its shape.
+    whole = jnp.all((fu >= 0.0) & (fu <= w - 1.0) & (fv >= 0.0) & (fv <= h - 1.0), axis=(1, 2))
+    fu, fv = jnp.clip(fu, 0.0, w - 1.0), jnp.clip(fv, 0.0, h - 1.0)
+    u0 = jnp.clip(jnp.floor(fu), 0, w - 2).astype(jnp.int32)
+    v0 = jnp.clip(jnp.floor(fv), 0, h - 2).astype(jnp.int32)
+    a, b = fu - u0.astype(jnp.float32), fv - v0.astype(jnp.float32)
+    act = ((1.0 - a) * (1.0 - b) * heat[v0, u0] + a * (1.0 - b) * heat[v0, u0 + 1]
+           + (1.0 - a) * b * heat[v0 + 1, u0] + a * b * heat[v0 + 1, u0 + 1])
+    m = jnp.maximum(act - threshold, 0.0).reshape(uv.shape[0], -1)
+    x = (fu - uv[:, 0, None, None]).reshape(uv.shape[0], -1)
+    y = (fv - uv[:, 1, None, None]).reshape(uv.shape[0], -1)
+    total = jnp.sum(m, axis=-1)
+    safe = jnp.where(total > 0.0, total, 1.0)
+    mx, my = jnp.sum(m * x, -1) / safe, jnp.sum(m * y, -1) / safe
+    sxx = jnp.sum(m * x * x, -1) / safe - mx * mx
+    syy = jnp.sum(m * y * y, -1) / safe - my * my
+    sxy = jnp.sum(m * x * y, -1) / safe - mx * my
+    mean = 0.5 * (sxx + syy)
+    root = jnp.sqrt(jnp.square(0.5 * (sxx - syy)) + jnp.square(sxy))
+    major, minor = mean + root, jnp.maximum(mean - root, 1e-6)
+    return jnp.where(whole & (total > 0.0), jnp.sqrt(jnp.maximum(major / minor, 1.0)), 1.0)
+
+
 def air_points(
     uv: Float[ArrayLike, "m 2"],
     radius_px: Float[ArrayLike, " m"],
@@ -307,12 +418,21 @@ class LoftedSource:
         iterations: mean-shift steps of :func:`blob_sizes`.
         calibration_frames: frames whose blob-size ratios give the detector's blob scale (0: none, the
             fixed ``blob_scale``).
+        hover_frames: frames whose blobs read as flying are remembered, to tell a ball in flight from a thing on the
+            ground that looks larger than the ball (:mod:`heatpf_jax.sources.hover`; 0, the default: no such test).
+            Off by default: on the replays of real tracks, scaled to a KidSize field, a low ball (0.1-0.2 m up)
+            drifts slowly enough to read as hovering, and among the family's large false blobs it made no
+            difference beyond the seeds' spread (docs/results.md); 16 with ``hover_blobs=4`` for a field with
+            static clutter larger than the ball.
+        hover_blobs: places remembered per frame.
     """
 
     max_measurements: int = 1024
     downscale: int = 1
     iterations: int = 4
     calibration_frames: int = 256
+    hover_frames: int = 0
+    hover_blobs: int = 4
 
     @property
     def size(self) -> int:
@@ -336,6 +456,9 @@ class LoftedSource:
             calibration_max_spread=Param(low=0.0, trainable=False, allow_inf=True),
             min_blob_scale=positive(trainable=False),
             max_blob_scale=positive(trainable=False, allow_inf=True),
+            hover_px=Param(low=0.0, trainable=False),
+            hover_min_age=Param(low=0.0, trainable=False, allow_inf=True),
+            hover_max_age=Param(low=0.0, trainable=False, allow_inf=True),
         )
 
     def validate(self) -> None:
@@ -343,50 +466,95 @@ class LoftedSource:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{name}: must be a positive integer, got {value!r}")
-        frames = self.calibration_frames
-        if not isinstance(frames, int) or isinstance(frames, bool) or frames < 0:
-            raise ValueError(f"calibration_frames: must be a non-negative integer, got {frames!r}")
+        for name in ("calibration_frames", "hover_frames"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise ValueError(f"{name}: must be a non-negative integer, got {value!r}")
+        blobs = self.hover_blobs
+        if not isinstance(blobs, int) or isinstance(blobs, bool) or blobs < 1:
+            raise ValueError(f"hover_blobs: must be a positive integer, got {blobs!r}")
 
-    def init_state(self) -> BlobScaleState | tuple:
-        """The filter's carried state of this source: the recent blob-size ratios (``()`` without calibration)."""
-        return init_blob_scale(self.calibration_frames) if self.calibration_frames > 0 else ()
+    def init_state(self) -> LoftedState | tuple:
+        """The filter's carried state of this source (:class:`LoftedState`; ``()`` with neither calibration nor
+        the hover test)."""
+        if self.calibration_frames == 0 and self.hover_frames == 0:
+            return ()
+        return LoftedState(
+            scale=init_blob_scale(self.calibration_frames) if self.calibration_frames > 0 else (),
+            hover=init_hover(self.hover_frames, self.hover_blobs) if self.hover_frames > 0 else (),
+        )
 
     def measure(self, inputs: StepInputs, params: LoftedParams) -> Measurements:
-        """The measurements with the fixed ``params.blob_scale``."""
-        return self._measure(inputs, params, None)[0]
+        """The measurements with the fixed ``params.blob_scale`` and no memory of earlier frames."""
+        return self._measure(inputs, params, LoftedState())[0]
 
     def measure_state(
-        self, inputs: StepInputs, params: LoftedParams, state: BlobScaleState | tuple
-    ) -> tuple[Measurements, BlobScaleState | tuple]:
-        """The measurements with the blob scale learned so far, this frame included, and the updated state."""
-        if not isinstance(state, BlobScaleState):  # no calibration: ()
+        self, inputs: StepInputs, params: LoftedParams, state: LoftedState | tuple
+    ) -> tuple[Measurements, LoftedState | tuple]:
+        """The measurements with the blob scale learned so far (this frame included) and the places of recent
+        flying blobs, and the updated state."""
+        if not isinstance(state, LoftedState):  # neither calibration nor hover test: ()
             return self.measure(inputs, params), state
         return self._measure(inputs, params, state)
 
-    def _measure(self, inputs: StepInputs, params: LoftedParams, state: BlobScaleState | None):
+    def carry_state(
+        self, inputs: StepInputs, params: LoftedParams, state: LoftedState | tuple
+    ) -> LoftedState | tuple:
+        """The state through a step without a heat map: the remembered places move with the robot and age."""
+        if isinstance(state, LoftedState) and isinstance(state.hover, HoverState):
+            return state._replace(hover=age_hover(state.hover, inputs.odometry, inputs.dt))
+        return state
+
+    def _measure(self, inputs: StepInputs, params: LoftedParams, state: LoftedState):
         heatmap, intrinsics = downscale_heatmap(inputs.heatmap, inputs.intrinsics, self.downscale)
         pose, radius = inputs.cam_to_base, inputs.plane_height
         uv, passes, weight = bright_pixels(heatmap, threshold=params.threshold, max_measurements=self.max_measurements)
+        calib = state.scale if isinstance(state.scale, BlobScaleState) else None
+        hover = state.hover if isinstance(state.hover, HoverState) else None
         scale = params.blob_scale
-        if state is not None:
-            scale = blob_scale_estimate(state, params.blob_scale, params.calibration_quantile)
+        if calib is not None:
+            scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
         blobs = blob_sizes(heatmap, uv, intrinsics, pose, threshold=params.threshold, plane_height=radius,
                            blob_scale=scale, reach=params.reach, max_half_px=params.max_half_px,
                            iterations=self.iterations)
-        if state is not None:  # this frame's ratio joins the estimate before its blobs are judged
-            state = update_blob_scale(state, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
-            scale = blob_scale_estimate(state, params.blob_scale, params.calibration_quantile)
-        apparent = blobs.std_px / scale
+        if calib is not None:  # this frame's ratio joins the estimate before its blobs are judged
+            calib = update_blob_scale(calib, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
+            scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
         min_ratio = params.min_ratio
-        if state is not None:
-            spread = blob_scale_spread(state)
+        if calib is not None:
+            spread = blob_scale_spread(calib)
             min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * spread))
             # What the frames show is no detector's ball (speckle, clutter or large false blobs outnumber it), or its
             # sizes scatter too widely: no blob is placed by its size, every pixel is measured as the paper's.
             credible = (spread <= params.calibration_max_spread) & (scale >= params.min_blob_scale) & (
                 scale <= params.max_blob_scale)
             min_ratio = jnp.where(credible, min_ratio, jnp.inf)
-        in_air = apparent > min_ratio * blobs.ground_radius_px  # above the horizon: ground radius 0
+        # A sphere's blob is round: its size is its minor std. Two blobs side by side that the window took as one (a
+        # ball beside a penalty mark), or a blurred blob, are stretched along one axis: by their mass they read as a
+        # ball too large for the ground, by their minor std as what they are. The std by mass is at least the minor
+        # one, so only a blob that its mass reads as flying needs the second moments (a frame without one skips them).
+        flying = passes & (blobs.std_px / scale > min_ratio * blobs.ground_radius_px)
+        span = jnp.clip(2.5 * jnp.maximum(blobs.std_px, _MIN_STD_PX), 1.0, params.max_half_px)
+        elongation = lax.cond(
+            jnp.any(flying),
+            lambda: jnp.where(flying, blob_elongation(heatmap, blobs.uv, span, threshold=params.threshold), 1.0),
+            lambda: jnp.ones_like(blobs.std_px),
+        )
+        apparent = blobs.std_px / jnp.sqrt(elongation) / scale
+        in_air = flying & (apparent > min_ratio * blobs.ground_radius_px)  # above the horizon: ground radius 0
+        if hover is not None:
+            # A blob read as flying where one was read so a while ago (moved with the robot) hovers: it lies on the
+            # ground. Its place is remembered all the same, so that a thing on the ground stays known as one.
+            # Judged per place (the few distinct flying blobs), not per pixel: a pixel beyond the first places keeps
+            # its reading.
+            hover = age_hover(hover, inputs.odometry, inputs.dt)
+            places, has, label = air_places(blobs.uv, weight, in_air, hover.valid.shape[1], params.hover_px)
+            still = has & hovering(hover, places, intrinsics, pose, tolerance=params.hover_px,
+                                   min_age=params.hover_min_age, max_age=params.hover_max_age)
+            hover = remember_hover(hover, place_points(places, intrinsics, pose, radius), has)
+            in_air = in_air & ~((label >= 0) & still[jnp.clip(label, 0, None)])
+        state = LoftedState(scale=calib if calib is not None else state.scale,
+                            hover=hover if hover is not None else state.hover)
         refused = apparent > params.max_ratio * blobs.ground_radius_px
         centres, sized = air_points(blobs.uv, apparent, intrinsics, pose, radius)
         air_xy = centres[:, :2]

@@ -85,7 +85,7 @@ def test_a_detector_with_larger_blobs_is_learned():
         spot = np.array([rng.uniform(1.5, 4.0), rng.uniform(-1.0, 1.0)])
         heat = _sphere_heatmap(rng, np.array([*spot, RADIUS]), pose, scale=1.0)
         m, state = measure(_inputs(heat, pose), params, state)
-    learned = float(blob_scale_estimate(state, params.blob_scale, params.calibration_quantile))
+    learned = float(blob_scale_estimate(state.scale, params.blob_scale, params.calibration_quantile))
     assert learned == pytest.approx(1.0, rel=0.12)
     heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
     m, _ = measure(_inputs(heat, pose), params, state)
@@ -97,14 +97,15 @@ def test_a_detector_with_larger_blobs_is_learned():
     m, after = measure(_inputs(heat, pose), params, state)
     assert np.linalg.norm(_weighted_xy(m) - air) < 0.1 * np.linalg.norm(air)
     # One flight does not move the estimate: the median of the last frames is still the ground balls'.
-    assert float(blob_scale_estimate(after, params.blob_scale)) == pytest.approx(learned, rel=0.05)
+    assert float(blob_scale_estimate(after.scale, params.blob_scale)) == pytest.approx(learned, rel=0.05)
 
 
 def test_the_filter_carries_the_learned_scale():
     model = hp.build("heatmap").model  # its source: LoftedSource
-    assert isinstance(model.init(jax.random.key(0), model.default_params()).source.log_ratios, jax.Array)
+    assert isinstance(model.init(jax.random.key(0), model.default_params()).source.scale.log_ratios, jax.Array)
     assert hp.build("paper").model.init(jax.random.key(0), hp.build("paper").params).source == ()
     assert LoftedSource(calibration_frames=0).init_state() == ()
+    assert LoftedSource(calibration_frames=0, hover_frames=4).init_state().scale == ()
     with pytest.raises(ValueError, match="^calibration_frames:"):
         LoftedSource(calibration_frames=-1).validate()
 
@@ -120,8 +121,10 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     widely to tell a flying ball, every pixel is measured where it projects: the paper's measurements, exactly."""
     source = LoftedSource(max_measurements=256, calibration_frames=16)
     state = source.init_state()
+    scale = state.scale
     for value in ratios:
-        state = update_blob_scale(state, value, True)
+        scale = update_blob_scale(scale, value, True)
+    state = state._replace(scale=scale)
     rng = np.random.default_rng(5)
     pose = _pose(0.6, 15.0)
     heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose)  # a ball in the air, 0.5 m up
@@ -132,8 +135,9 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     assert int(np.sum(m.valid)) == int(np.sum(paper.valid)) > 0
     np.testing.assert_allclose(valid_rows(m), valid_rows(paper), atol=1e-5)
     # A credible scale (the simulator's 0.6, ratios that agree) places the same ball under itself.
-    state = source.init_state()
+    scale = source.init_state().scale
     for value in np.log(0.6) + 0.02 * rng.standard_normal(16):
-        state = update_blob_scale(state, value, True)
+        scale = update_blob_scale(scale, value, True)
+    state = source.init_state()._replace(scale=scale)
     placed, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25

@@ -10,7 +10,7 @@ import pytest
 import heatpf_jax as hp
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sources.image_centroids import summed_area, summed_areas
-from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, _box_max, air_points, blob_sizes
+from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, _box_max, air_points, blob_sizes, bright_pixels
 
 INTRINSICS = np.array([143.0, 143.0, 99.5, 74.5])
 SHAPE = (150, 200)
@@ -181,3 +181,35 @@ def test_lofted_source_as_a_filter_option():
     assert lofted.params.source == LoftedParams()
     with pytest.raises(ValueError, match="^iterations:"):
         LoftedSource(iterations=0).validate()
+
+
+@pytest.mark.parametrize(("a", "b", "angle"), [(4.0, 2.0, 0.5), (3.0, 3.0, 0.0), (6.0, 2.5, -1.1)])
+def test_blob_elongation_is_the_ratio_of_a_gaussians_stds(a, b, angle):
+    """An anisotropic Gaussian blob (stds a >= b, rotated) cut at the threshold: the elongation is a / b."""
+    h, w = SHAPE
+    vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    du, dv = uu - 97.3, vv - 71.8
+    x, y = c * du + s * dv, -s * du + c * dv
+    heat = (0.9 * np.exp(-0.5 * (x**2 / a**2 + y**2 / b**2))).astype(np.float32)
+    uv = np.array([[97.3, 71.8]], np.float32)
+    span = np.array([2.5 * np.sqrt(a * b)], np.float32)  # as LoftedSource spans it: 2.5 mass-based stds
+    got = float(hp.sources.blob_elongation(heat, uv, span, threshold=0.3)[0])
+    assert got == pytest.approx(a / b, rel=0.04)
+
+
+def test_two_ground_blobs_side_by_side_are_not_one_ball_in_the_air():
+    """A ball and a ball-sized thing 0.45 m behind it along the ray overlap in the image: their mass and spread read as
+    one blob too large for a ground ball, but a sphere's blob is round, and its minor std is a ground ball's: both are
+    measured where they project, as the paper's source measures them."""
+    rng = np.random.default_rng(2)
+    pose = _pose(0.6, 30.0)
+    heat = np.maximum(_sphere_heatmap(rng, np.array([2.5, 0.2, RADIUS]), pose),
+                      _sphere_heatmap(rng, np.array([2.05, 0.02, RADIUS]), pose))
+    inputs = _inputs(heat, pose)
+    lofted = LoftedSource(max_measurements=256, calibration_frames=0, hover_frames=0)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    blobs = blob_sizes(heat, *bright_pixels(heat, threshold=0.3, max_measurements=256)[:1], INTRINSICS, pose,
+                       threshold=0.3, plane_height=RADIUS)
+    assert float(np.max(np.asarray(blobs.std_px) / np.asarray(blobs.ground_radius_px))) > 0.6 * 1.25  # by mass: flying
+    np.testing.assert_allclose(np.asarray(lofted.measure(inputs, LoftedParams()).xy), np.asarray(paper.xy), atol=1e-5)
