@@ -148,6 +148,9 @@ class FilterOptions(NamedTuple):
             ``"mass_inertia"`` (Olufs eq. 4-6) or ``"rolling_ball"``
             (:class:`~heatpf_jax.motion.rolling_ball.RollingBall`: rolling friction, kicks as a jump process).
             ``kalman`` and ``bitbots2018`` keep their own.
+        hover_frames: with the ``"lofted"`` source, frames whose blobs read as flying are remembered
+            (:mod:`heatpf_jax.sources.hover`: a blob read as flying at a place where one was read so 0.25-1 s before
+            lies on the ground); 0 (default): no such test. 16 for a field with static clutter larger than the ball.
     """
 
     num_particles: int = 500
@@ -166,6 +169,7 @@ class FilterOptions(NamedTuple):
     max_tracks: int = 4
     source: str = AUTO
     motion: str = AUTO
+    hover_frames: int = 0
 
 
 def validate_options(options: FilterOptions) -> None:
@@ -176,6 +180,9 @@ def validate_options(options: FilterOptions) -> None:
         value = getattr(options, name)
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+    hover = options.hover_frames
+    if not isinstance(hover, int) or isinstance(hover, bool) or hover < 0:
+        raise ValueError(f"hover_frames: must be a non-negative integer, got {hover!r}")
     if options.resampler not in RESAMPLERS:
         raise ValueError(f"resampler: must be one of {sorted(RESAMPLERS)}, got {options.resampler!r}")
     if options.spawn not in SPAWNS:
@@ -244,7 +251,8 @@ def _pixels(options: FilterOptions, default: str = "pixels") -> PixelSource | Ce
     if which == "centroids":
         return CentroidSource(max_measurements=options.max_measurements, downscale=options.downscale)
     if which == "lofted":
-        return LoftedSource(max_measurements=options.max_measurements, downscale=options.downscale)
+        return LoftedSource(max_measurements=options.max_measurements, downscale=options.downscale,
+                            hover_frames=options.hover_frames)
     return PixelSource(max_measurements=options.max_measurements, downscale=options.downscale)
 
 

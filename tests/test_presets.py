@@ -53,6 +53,7 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     assert pixels.model == heat.model._replace(source=hp.sources.PixelSource())
     assert pixels.params.source == hp.sources.SourceParams()
     assert hp.build("heatmap", hp.FilterOptions(source="lofted")) == heat
+    assert hp.build("heatmap", hp.FilterOptions(hover_frames=16)).model.source.hover_frames == 16  # opt-in
     assert hp.build("paper", hp.FilterOptions(source="centroids")).params.source == hp.sources.CentroidParams()
     gauss = hp.build("heatmap", hp.FilterOptions(observation="gaussian"))
     assert gauss.params.observation.k == 10 and gauss.params.observation.obs_std == 0.05
@@ -124,6 +125,7 @@ def test_options_validation_names_the_field():
     for change, field in [({"resampler": "bogus"}, "resampler"), ({"spawn": "normal"}, "spawn"),
                           ({"observation": "cauchy"}, "observation"), ({"num_particles": 0}, "num_particles"),
                           ({"k_max": 1.5}, "k_max"), ({"spawn_box": (1.0, 0.0, -1.0, 1.0)}, "spawn_box"),
-                          ({"knn": "kdtree"}, "knn"), ({"motion": "brownian"}, "motion")]:
+                          ({"knn": "kdtree"}, "knn"), ({"motion": "brownian"}, "motion"),
+                          ({"hover_frames": -1}, "hover_frames")]:
         with pytest.raises(ValueError, match=rf"^{field}:"):
             hp.paper_filter(hp.FilterOptions(**change))
