@@ -152,3 +152,19 @@ def test_places_move_and_age_through_steps_without_a_heat_map():
         LoftedSource(hover_blobs=0).validate()
     with pytest.raises(ValueError, match="^hover_frames:"):
         LoftedSource(hover_frames=-1).validate()
+
+
+def test_the_filter_ages_the_places_on_steps_without_a_heat_map():
+    """``Filter.step`` calls ``carry_state`` on a step without a heat map: remembered places age by its ``dt`` and
+    move with its odometry."""
+    method = hp.build("heatmap", hp.FilterOptions(hover_frames=4, num_particles=64, max_measurements=64))
+    model, params = method.model, method.params
+    state = model.init(jax.random.key(0), params)
+    pts = np.array([[2.0, 0.5, RADIUS, 1.0]] * 4, np.float32)
+    state = state._replace(source=state.source._replace(hover=remember_hover(state.source.hover, pts,
+                                                                               np.ones(4, bool))))
+    inputs = _inputs(np.zeros((150, 200), np.float32), _pose(0.6, 20.0))._replace(
+        has_heatmap=jnp.asarray(False), odometry=jnp.asarray([0.25, 0.0, 0.0], jnp.float32))
+    after, _ = jax.jit(model.step)(jax.random.key(1), state, inputs, params)
+    assert float(after.source.hover.age[0]) == pytest.approx(0.1)
+    np.testing.assert_allclose(np.asarray(after.source.hover.points[0, 0, :2]), [1.75, 0.5], atol=1e-5)
