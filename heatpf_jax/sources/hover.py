@@ -31,7 +31,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from heatpf_jax.camera import pixel_ray, project_pixel
+from heatpf_jax.camera import pixel_ray, project_pixel, project_points
+from heatpf_jax.frames import apply_odometry
 
 __all__ = [
     "HoverState",
@@ -75,12 +76,12 @@ def age_hover(state: HoverState, odometry: Float[ArrayLike, "3"], dt: Float[Arra
     direction (``w = 0``) only turns.
     """
     odometry = jnp.asarray(odometry, jnp.float32)
-    c, s = jnp.cos(odometry[2]), jnp.sin(odometry[2])
-    p = state.points
-    w = p[..., 3]
-    qx = p[..., 0] - w * odometry[0]
-    qy = p[..., 1] - w * odometry[1]
-    moved = jnp.stack([c * qx + s * qy, -s * qx + c * qy, p[..., 2], w], axis=-1)
+    f, k, _ = state.points.shape
+    p = state.points.reshape(f * k, 4)
+    w = p[:, 3]
+    per_point = jnp.stack([w * odometry[0], w * odometry[1], jnp.broadcast_to(odometry[2], w.shape)], axis=-1)
+    xy = apply_odometry(p[:, :2], per_point)
+    moved = jnp.concatenate([xy, p[:, 2:]], axis=-1).reshape(f, k, 4)
     return state._replace(points=moved, age=state.age + jnp.asarray(dt, jnp.float32))
 
 
@@ -155,15 +156,11 @@ def remember_hover(state: HoverState, points: Float[ArrayLike, "k 4"], valid: Bo
 
 
 def _image_of(points: Float[Array, "n 4"], intrinsics: Float[Array, "4"], pose: Float[Array, "4 4"]):
-    """Pixels ``[n, 2]`` of homogeneous base-frame points, and whether each lies in front of the camera."""
-    rot, origin = pose[:3, :3], pose[:3, 3]
-    cam = (points[:, :3] - points[:, 3:4] * origin[None, :]) @ rot  # R^T (p - w t), row-wise
-    z = cam[:, 2]
-    front = z > 1e-6
-    safe = jnp.where(front, z, 1.0)
-    uv = jnp.stack([intrinsics[0] * cam[:, 0] / safe + intrinsics[2],
-                    intrinsics[1] * cam[:, 1] / safe + intrinsics[3]], axis=-1)
-    return uv, front
+    """Pixels ``[n, 2]`` of homogeneous base-frame points, and whether each lies in front of the camera: a
+    direction (``w = 0``) projects where the point one unit along it from the camera does."""
+    origin = pose[:3, 3]
+    uv, depth = project_points(points[:, :3] + (1.0 - points[:, 3:4]) * origin[None, :], intrinsics, pose)
+    return uv, depth > 1e-6
 
 
 def hovering(
