@@ -88,7 +88,7 @@ class TrackMemory:
             first.
     """
 
-    capacity: int = 4
+    capacity: int = 8
     max_births: int = 1
     max_blobs: int = 8
 
