@@ -62,6 +62,8 @@ def main(argv=None) -> int:
     parser.add_argument("--window", type=int, default=30, help="steps watched after reappearance (default 30)")
     parser.add_argument("--filter-seeds", type=int, default=3, help="filter keys per sequence (default 3)")
     parser.add_argument("--methods", default="paper,heatmap,extended", help="comma-separated")
+    parser.add_argument("--max-tracks", type=int, default=FilterOptions().max_tracks,
+                        help=f"the memory's capacity (default {FilterOptions().max_tracks})")
     parser.add_argument("--modes", default="none", help="the filters' modes, the memory's candidates "
                         "(default none: the estimate; meanshift: every cluster)")
     args = parser.parse_args(argv)
@@ -77,7 +79,8 @@ def main(argv=None) -> int:
             steps, after, overall = [], [], []
             for key in range(args.filter_seeds):
                 result = evaluate_sequences(
-                    args.scenario, sequences, options=FilterOptions(memory=memory, modes=args.modes),
+                    args.scenario, sequences,
+                    options=FilterOptions(memory=memory, modes=args.modes, max_tracks=args.max_tracks),
                     variants=[Variant(memory, method)], seed=key,
                 )
                 errors = result.methods[0].errors
