@@ -18,8 +18,8 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
-  8 track slots, re-detection, hint particles and re-detection seeds; issue 12's speed check), and
-  ``heatmap + memory, 4 slots``: the memory's capacity before it became 8.
+  16 track slots, re-detection, hint particles and re-detection seeds; issue 12's speed check), and
+  ``heatmap + memory, 8 slots`` and ``4 slots``: the memory's earlier capacities.
 
 Run: ``.venv/bin/python benchmarks/bench_extended.py [--sizes 500x1024] [--repeats 200] [--threads 1]``
 """
@@ -62,8 +62,9 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
     with_memory = options._replace(memory="tracks")
     for name in ("paper", "heatmap", "extended"):
         out[f"{name} + memory"] = tuple(hp.build(name, with_memory))
-    # The memory's capacity before it became 8 slots, for its cost in the same run.
-    out["heatmap + memory, 4 slots"] = tuple(hp.build("heatmap", with_memory._replace(max_tracks=4)))
+    # The memory's earlier capacities, for their cost in the same run.
+    for slots in (8, 4):
+        out[f"heatmap + memory, {slots} slots"] = tuple(hp.build("heatmap", with_memory._replace(max_tracks=slots)))
     return out
 
 

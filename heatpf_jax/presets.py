@@ -131,8 +131,8 @@ class FilterOptions(NamedTuple):
         memory: the long-term memory (:mod:`heatpf_jax.memory`, Olufs 3.4): ``"none"`` (default) or
             ``"tracks"`` (a track table of ``max_tracks`` slots fed by the modes, or the estimate when
             ``modes`` is ``"none"``, with hint particles for lost tracks).
-        max_tracks: the memory's capacity (8: a track for the ball, the distractors near it and the clutter the
-            filter visits; with 4 slots a lost ball's track lost its slot to a new blob among distractors).
+        max_tracks: the memory's capacity (16: a track for the ball, the distractors near it and the clutter the
+            filter visits; with fewer slots a lost ball's track lost its slot to a new blob among distractors).
         source: what the heat map's pixels become (III-A): ``"auto"`` (the method's own: ``"pixels"`` for
             ``paper`` and ``extended``, ``"lofted"`` for ``heatmap``), ``"pixels"`` (every pixel at or above the
             threshold, where it lies: the paper's source), ``"centroids"`` (every such pixel at its blob's centroid
@@ -167,7 +167,7 @@ class FilterOptions(NamedTuple):
     max_modes: int = 3
     ego: str = "odometry"
     memory: str = "none"
-    max_tracks: int = 8
+    max_tracks: int = 16
     source: str = AUTO
     motion: str = AUTO
     hover_frames: int = 0

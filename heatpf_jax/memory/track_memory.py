@@ -88,7 +88,7 @@ class TrackMemory:
             first.
     """
 
-    capacity: int = 8
+    capacity: int = 16
     max_births: int = 1
     max_blobs: int = 8
 
