@@ -18,7 +18,7 @@ Two renderers draw the frames of one simulated world (its camera, its ball path)
 
     python benchmarks/colour_user_box.py                         # seeds 0-2, 200 steps, both renderers
     python benchmarks/colour_user_box.py --seeds 100:103 --renderers numpy --scales 1.25
-    python benchmarks/colour_user_box.py --methods heatmap,heatmap:source=pixels   # METHOD:OPTION=VALUE[+...]
+    python benchmarks/colour_user_box.py --methods heatmap,heatmap:threshold=0.5   # METHOD:NAME=VALUE[+...]
 
 ``--speed``: the time of ``heatpf colour`` on 200 frames (``standard`` seed 0, a box 25 % larger than the ball)
 from a cold and from a warm compilation cache (a fresh ``HEATPF_CACHE_DIR``, the command run twice in new
@@ -251,10 +251,17 @@ def reference_frames(seq, info) -> dict[str, int]:
 
 
 def filter_error(seq, method: str, seed: int) -> float:
-    """``METHOD`` or ``METHOD:FIELD=VALUE[+...]`` (static options, as ``benchmarks/worlds.py`` takes them)."""
+    """``METHOD`` or ``METHOD:NAME=VALUE[+...]``: static options and parameters by name, as ``benchmarks/worlds.py``
+    takes them (``heatmap:source=pixels+threshold=0.5``)."""
+    from heatpf_jax import params as P
+
     name, _, spec = method.partition(":")
-    options = hp.FilterOptions()._replace(**dict(item.split("=", 1) for item in spec.split("+"))) if spec else None
-    model, params = hp.build(name) if options is None else hp.build(name, options)
+    items = dict(item.split("=", 1) for item in spec.split("+")) if spec else {}
+    options = hp.FilterOptions()._replace(**{k: v for k, v in items.items() if k in hp.FilterOptions._fields})
+    model, params = hp.build(name, options)
+    overrides = {k: float(v) for k, v in items.items() if k not in hp.FilterOptions._fields}
+    if overrides:
+        params = P.set_by_name(params, model.properties(), overrides)
     mean = np.asarray(hp.run(jax.random.key(seed), seq, params, model).info.mean, np.float64)
     err = np.linalg.norm(mean - seq.ground_truth, axis=1)[10:]
     return float(np.mean(np.where(np.isfinite(err), err, 10.0)))
