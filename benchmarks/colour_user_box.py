@@ -253,13 +253,13 @@ def reference_frames(seq, info) -> dict[str, int]:
 def filter_error(seq, method: str, seed: int) -> float:
     """``METHOD`` or ``METHOD:NAME=VALUE[+...]``: static options and parameters by name, as ``benchmarks/worlds.py``
     takes them (``heatmap:source=pixels+threshold=0.5``)."""
+    from worlds import variant_options  # benchmarks/worlds.py, beside this script
+
     from heatpf_jax import params as P
 
     name, _, spec = method.partition(":")
-    items = dict(item.split("=", 1) for item in spec.split("+")) if spec else {}
-    options = hp.FilterOptions()._replace(**{k: v for k, v in items.items() if k in hp.FilterOptions._fields})
+    options, overrides = variant_options(spec)
     model, params = hp.build(name, options)
-    overrides = {k: float(v) for k, v in items.items() if k not in hp.FilterOptions._fields}
     if overrides:
         params = P.set_by_name(params, model.properties(), overrides)
     mean = np.asarray(hp.run(jax.random.key(seed), seq, params, model).info.mean, np.float64)
