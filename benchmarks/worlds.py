@@ -97,7 +97,10 @@ def variant_options(spec: str) -> tuple[FilterOptions, dict]:
     if "=" not in spec:
         return FilterOptions(source=spec), {}
     items = dict(item.split("=", 1) for item in spec.split("+"))
-    options = {k: v for k, v in items.items() if k in FilterOptions._fields}
+    defaults = FilterOptions()
+    # Each option as its default's type (hover_frames=16 is an int); the names of sources and models stay strings.
+    options = {k: type(getattr(defaults, k))(v) if isinstance(getattr(defaults, k), int) else v
+               for k, v in items.items() if k in FilterOptions._fields}
     return FilterOptions()._replace(**options), {k: float(v) for k, v in items.items() if k not in options}
 
 
