@@ -183,6 +183,8 @@ def cmd_colour(args: argparse.Namespace) -> int:
         raise ValueError(f"--theta: must lie in [0, 1), got {args.theta}")
     if not args.window_scale > 0.0:
         raise ValueError(f"--window-scale: must be positive, got {args.window_scale}")
+    if not 0.0 <= args.window_waist <= 1.0:
+        raise ValueError(f"--window-waist: must lie in [0, 1], got {args.window_waist}")
     if not 0.0 <= args.smoothing < 0.5:
         raise ValueError(f"--smoothing: must lie in [0, 0.5), got {args.smoothing}")
     if not 0.0 <= args.chroma_smoothing < 0.5:
@@ -199,7 +201,7 @@ def cmd_colour(args: argparse.Namespace) -> int:
             raise ValueError(f"--frame: must be in [0, {seq.num_steps - 1}], got {args.frame}")
         _check_box(box, seq.images.shape[1:3], f"frame {args.frame}")
     options = ReferenceOptions(intensity_smoothing=args.smoothing, chroma_smoothing=args.chroma_smoothing)
-    params = SCALED_PARAMS._replace(theta=args.theta, window_scale=args.window_scale)
+    params = SCALED_PARAMS._replace(theta=args.theta, window_scale=args.window_scale, window_waist=args.window_waist)
     timings: dict[str, float] = {}
     colour, ref = colour_sequence(seq, box=box, frame=args.frame, reference_image=reference_image,
                                   background=args.background, options=options, params=params, timings=timings)
@@ -251,6 +253,9 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
                    "score (default 0.35)")
     p.add_argument("--window-scale", type=float, default=0.9, help="object window half-size over the expected "
                    "ball radius in pixels (default 0.9)")
+    p.add_argument("--window-waist", type=float, default=1.0, help="the object window's arm width over its length, "
+                   "in [0, 1] (default 1: a square; 0.618 with --window-scale 0.851: the largest cross of two "
+                   "rectangles inside a round ball)")
     p.add_argument("--smoothing", type=float, default=0.25, help="reference smoothing along the intensity bins, "
                    "for lighting changes (default 0.25)")
     p.add_argument("--chroma-smoothing", type=float, default=0.25, help="reference smoothing along the r' and g' "

@@ -90,6 +90,11 @@ class ColourParams(NamedTuple):
             ``theta`` is applied. 1 (the default) keeps the coefficient's own scale; the reference's own
             score (:func:`heatpf_jax.colour.reference.reference_score`, what ``heatpf colour`` uses) puts the
             maps on an absolute scale, the object as it looks in the reference at about 1.
+        window_waist: the object window's shape (:func:`window_coefficient`): the union of a wide and a tall
+            rectangle, half-sizes ``a x b`` and ``b x a`` with ``a`` the window's half-size and ``b = round(waist
+            a)``. 1 (the default, and ``heatpf colour``'s) is the square; 0.618 with ``window_scale`` 0.851 is the
+            largest such cross inside a round ball's disc (``heatpf colour --window-scale 0.851 --window-waist
+            0.618``; docs/results.md has what it changes).
     """
 
     theta: float = 0.2
@@ -99,6 +104,7 @@ class ColourParams(NamedTuple):
     max_half_size: float = 25.0
     blob_reach: float = 2.0
     reference_score: float = 1.0
+    window_waist: float = 1.0
 
 
 def expected_radius_px(
@@ -167,10 +173,39 @@ def window_half_sizes(radius: Float[ArrayLike, "*n"], params: ColourParams) -> t
     return inner, outer
 
 
+def _cross_sums(table, inner, waist, shape):
+    """Per pixel, the bin counts and pixel count of the cross of half-sizes ``inner x b`` and ``b x inner`` around
+    it (``b = round(waist * inner)``, clipped to ``[0, inner]``): the wide box plus the tall one less their
+    overlap, each clipped to the image. ``waist`` 1 gives the square."""
+    h, w = shape
+    v, u = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
+    a = inner.astype(jnp.int32)
+    b = jnp.clip(jnp.round(waist * inner), 0.0, inner).astype(jnp.int32)
+
+    def rect(rx, ry):
+        y0, y1 = jnp.clip(v - ry, 0, h), jnp.clip(v + ry + 1, 0, h)
+        x0, x1 = jnp.clip(u - rx, 0, w), jnp.clip(u + rx + 1, 0, w)
+        return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
+
+    (wide, n_wide), (tall, n_tall), (both, n_both) = rect(a, b), rect(b, a), rect(b, b)
+    return wide + tall - both, n_wide + n_tall - n_both
+
+
 def window_coefficient(
-    table: Float[Array, "h1 w1 k"], q_top: Float[Array, " k"], inner: Float[Array, "h w"], outer: Float[Array, "h w"]
+    table: Float[Array, "h1 w1 k"],
+    q_top: Float[Array, " k"],
+    inner: Float[Array, "h w"],
+    outer: Float[Array, "h w"],
+    waist: Float[ArrayLike, ""] = 1.0,
 ) -> Float[Array, "h w"]:
     """Eq. 2-3's background-subtracted Bhattacharyya coefficient ``rho`` at every pixel (before ``theta``).
+
+    The object window is the cross of half-sizes ``inner x b`` and ``b x inner`` (``b = round(waist * inner)``;
+    ``waist`` 1, the default: the square of half-size ``inner``), the ring the square of half-size ``outer`` less
+    the window. A ball is round: a square window inside it leaves its rim out, one over it takes in the grass at its
+    corners. The cross with ``b / a = tan(atan(2) / 2) = 0.618`` and ``a = 0.851`` radii has its corners on the
+    disc's rim and is the largest cross inside it (its area ``4 (2 a b - b^2)`` is largest at ``tan 2 theta = 2``
+    for ``a = r cos theta``, ``b = r sin theta``): 2.47 squared radii, against 2.0 for the largest square inside.
 
     Args:
         table: a summed-area table of bin counts (:class:`~heatpf_jax.colour.space.BinTable` ``.table``, or
@@ -178,12 +213,13 @@ def window_coefficient(
         q_top: the reference's values on those bins.
         inner: per pixel, the object window's half-size (:func:`window_half_sizes`).
         outer: per pixel, the ring's outer half-size (:func:`window_half_sizes`).
+        waist: the cross's arm width over its length (:attr:`ColourParams.window_waist`).
 
     Returns:
         ``float32 [H, W]``, ``sum_u sqrt(q_u) max(0, sqrt(p_obj(u)) - sqrt(p_bck(u)))``.
     """
     shape = inner.shape
-    in_sum, in_count = _box_sums(table, inner, shape)
+    in_sum, in_count = _cross_sums(table, inner, jnp.asarray(waist, jnp.float32), shape)
     out_sum, out_count = _box_sums(table, outer, shape)
     # Clipped at 0: a float table's box sums can come out a rounding error below it (uint16 ones are exact).
     p_obj = jnp.maximum(in_sum, 0.0) / jnp.maximum(in_count, 1.0)[..., None]
@@ -196,7 +232,7 @@ def window_coefficient(
 def _likelihood(tables, radius: Float[Array, "h w"], params: ColourParams) -> Float[Array, "h w"]:
     """Eq. 1-3 at every pixel from the summed-area tables, the window from ``radius`` (one pass)."""
     inner, outer = window_half_sizes(radius, params)
-    rho = _chunked_coefficient(tables, inner, outer)
+    rho = _chunked_coefficient(tables, inner, outer, params.window_waist)
     act = jnp.maximum(rho / params.reference_score - params.theta, 0.0) / (1.0 - params.theta)
     return jnp.where(radius > 0, jnp.clip(act, 0.0, 1.0), 0.0)
 
@@ -240,12 +276,12 @@ def _chunk_tables(image, ranks: _Ranks, bins) -> _ChunkTables:
     return _ChunkTables(tables, ranks.q_top)
 
 
-def _chunked_coefficient(tables: _ChunkTables, inner, outer) -> Float[Array, "h w"]:
+def _chunked_coefficient(tables: _ChunkTables, inner, outer, waist) -> Float[Array, "h w"]:
     """:func:`window_coefficient` summed over the chunks' tables."""
 
     def one(total, chunk):
         table, q_top = chunk
-        return total + window_coefficient(table, q_top, inner, outer), None
+        return total + window_coefficient(table, q_top, inner, outer, waist), None
 
     total, _ = lax.scan(one, jnp.zeros(inner.shape, jnp.float32), (tables.table, tables.q_top))
     return total

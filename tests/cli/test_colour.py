@@ -6,6 +6,7 @@ from PIL import Image
 
 from heatpf_jax.cli import main
 from heatpf_jax.cli.colour import colour_sequence
+from heatpf_jax.colour.reference import SCALED_PARAMS
 from heatpf_jax.io.sequence import load_sequence, save_sequence
 from heatpf_jax.sim import simulate
 from heatpf_jax.sim.render import project_centre
@@ -42,6 +43,20 @@ def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
     before = out.read_bytes()
     assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(out)]) == 2
     assert "--output" in _error(capsys) and out.read_bytes() == before  # never replaced without --force
+
+
+def test_the_window_options_reach_the_maps(tmp_path, rgb_file):
+    """``--window-scale`` and ``--window-waist`` (the cross inside a round ball) give the library's maps with those
+    numbers, and the cross's maps differ from the square's."""
+    path, seq = rgb_file
+    out = tmp_path / "cross.npz"
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "--window-scale", "0.851",
+                 "--window-waist", "0.618", "-o", str(out)]) == 0
+    params = SCALED_PARAMS._replace(window_scale=0.851, window_waist=0.618)
+    want, _ = colour_sequence(seq, box=(20, 10, 4, 4), frame=1, params=params)
+    np.testing.assert_allclose(load_sequence(out).heatmaps, want.heatmaps, atol=1e-6)
+    square, _ = colour_sequence(seq, box=(20, 10, 4, 4), frame=1, params=params._replace(window_waist=1.0))
+    assert not np.allclose(square.heatmaps, want.heatmaps)
 
 
 def _ball_box(seq, t, scale, offset):
@@ -119,6 +134,7 @@ def test_reference_images_png_and_npy(tmp_path, rgb_file):
     (["--box", "1,1,4,4"], "--reference: give a reference image"),
     (["--box", "1,1,4,4", "--frame", "0", "--theta", "1.0"], "--theta: must lie in [0, 1)"),
     (["--box", "1,1,4,4", "--frame", "0", "--chroma-smoothing", "0.5"], "--chroma-smoothing: must lie in [0, 0.5)"),
+    (["--box", "1,1,4,4", "--frame", "0", "--window-waist", "1.5"], "--window-waist: must lie in [0, 1]"),
 ])
 def test_bad_arguments_are_one_line_errors(tmp_path, rgb_file, capsys, args, message):
     path, _ = rgb_file

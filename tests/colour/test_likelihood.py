@@ -57,7 +57,12 @@ def _brute_force(image, q, half, params, white=None):
                 continue
             inner = int(np.clip(np.round(params.window_scale * half[v, u]), params.min_half_size, params.max_half_size))
             outer = max(int(np.round(params.ring_scale * inner)), inner + 1)
-            win = idx[max(v - inner, 0): v + inner + 1, max(u - inner, 0): u + inner + 1].ravel()
+            # The cross of a wide and a tall rectangle (the square when b = inner), pixel by pixel.
+            b = int(min(max(np.round(np.float32(params.window_waist) * np.float32(inner)), 0), inner))
+            rows, cols = np.mgrid[v - inner:v + inner + 1, u - inner:u + inner + 1]
+            cross = (np.abs(rows - v) <= b) | (np.abs(cols - u) <= b)
+            inside = cross & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+            win = idx[rows[inside], cols[inside]]
             big = idx[max(v - outer, 0): v + outer + 1, max(u - outer, 0): u + outer + 1].ravel()
             n_in = np.bincount(win, minlength=M).astype(float)
             n_ring = np.bincount(big, minlength=M) - n_in
@@ -113,8 +118,8 @@ def test_bins_and_histograms_against_numpy(rng):
     np.testing.assert_allclose(smooth_chromaticity(q), want.ravel() / want.sum(), rtol=1e-5, atol=1e-8)
 
 
-@pytest.mark.parametrize("top_bins", [M, 64, "exact"])
-def test_likelihood_against_brute_force(rng, top_bins):
+@pytest.mark.parametrize(("top_bins", "waist"), [(M, 1.0), (64, 0.618), ("exact", 1.0)])
+def test_likelihood_against_brute_force(rng, top_bins, waist):
     image = _scene(rng)
     q = np.asarray(patch_histogram(image, (12, 9, 6, 6)), np.float64)
     assert np.count_nonzero(q) <= 64  # the truncated tables are exact for this reference
@@ -123,16 +128,18 @@ def test_likelihood_against_brute_force(rng, top_bins):
         nonzero = np.count_nonzero(q)
         assert top_bins == max(8, 2 ** int(np.ceil(np.log2(nonzero)))) and top_bins < 64, (top_bins, nonzero)
     half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)  # every size, and 0 (no ball possible)
-    params = ColourParams(theta=0.15, window_scale=0.8, ring_scale=2.0, min_half_size=1.0, max_half_size=4.0)
+    params = ColourParams(theta=0.15, window_scale=0.8, ring_scale=2.0, min_half_size=1.0, max_half_size=4.0,
+                          window_waist=waist)
     q32 = jnp.asarray(q, jnp.float32)
     got = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins, blob_window=False))
     first = _brute_force(image, q, half, params)
     np.testing.assert_allclose(got, first, atol=2e-5)
     # The second pass: every pixel's window from the first map's local centroid.
     half2 = _brute_blob_half(first, half, params.blob_reach)
-    assert np.isfinite(half2).all() and np.any(half2 != half)  # no rounding ties; the windows did move
+    ok = np.isfinite(half2)  # a centroid on a rounding tie: float32 may go either way, that pixel is not compared
+    assert ok.mean() > 0.99 and np.any(half2[ok] != half[ok])  # the windows did move
     got2 = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins))
-    np.testing.assert_allclose(got2, _brute_force(image, q, half2, params), atol=2e-5)
+    np.testing.assert_allclose(got2[ok], _brute_force(image, q, np.where(ok, half2, half), params)[ok], atol=2e-5)
 
 
 def test_reference_score_and_light_against_brute_force(rng):

@@ -134,20 +134,25 @@ def _canvas_coefficient(q, patch, background, s, params):
     for v in range(h):
         for u in range(w):
             counts = {}
-            for name, half in (("in", s), ("out", outer)):
+            b = int(min(max(np.round(np.float32(params.window_waist) * np.float32(s)), 0), s))
+            n = {}
+            for name, half, arm in (("in", s, b), ("out", outer, outer)):
                 c = np.zeros(M)
                 rows, cols = np.mgrid[v - half:v + half + 1, u - half:u + half + 1]
+                window = (np.abs(rows - v) <= arm) | (np.abs(cols - u) <= arm)  # the cross (a square for the ring)
                 inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-                np.add.at(c, idx[rows[inside], cols[inside]], 1.0)
-                counts[name] = c + (~inside).sum() * background
-            n_in, n_out = (2 * s + 1) ** 2, (2 * outer + 1) ** 2
+                np.add.at(c, idx[rows[inside & window], cols[inside & window]], 1.0)
+                counts[name] = c + (~inside & window).sum() * background
+                n[name] = window.sum()
+            n_in, n_out = n["in"], n["out"]
             p_obj = counts["in"] / n_in
             p_bck = (counts["out"] - counts["in"]) / (n_out - n_in)
             out[v, u] = np.sum(np.sqrt(q) * np.maximum(np.sqrt(p_obj) - np.sqrt(np.maximum(p_bck, 0)), 0))
     return out
 
 
-def test_locate_object_against_brute_force(rng):
+@pytest.mark.parametrize("waist", [1.0, 0.618])
+def test_locate_object_against_brute_force(rng, waist):
     ball = (9.0, 12.0, 4.0)
     frame = draw(rng, ball=ball, shape=(20, 26), lines=False)
     box = (6, 3, 12, 12)  # larger than the ball and off-centre
@@ -156,7 +161,7 @@ def test_locate_object_against_brute_force(rng):
     q = np.asarray(corrected_background_weighted(histogram(rgi_bins(patch), M), background))
     q = q * (q >= np.sort(q)[-exact_top_bins(q)])  # the bins locate_object's tables hold
     q /= q.sum()
-    params = ColourParams()
+    params = ColourParams(window_waist=waist)
     fit = locate_object(q, patch, background, params)
     best = max(((s, _canvas_coefficient(q, patch, np.asarray(background), s, params)) for s in range(1, 7)),
                key=lambda sr: sr[1].max())
