@@ -187,8 +187,12 @@ def _cross_sums(table, inner, waist, shape):
         x0, x1 = jnp.clip(u - rx, 0, w), jnp.clip(u + rx + 1, 0, w)
         return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
 
-    (wide, n_wide), (tall, n_tall), (both, n_both) = rect(a, b), rect(b, a), rect(b, b)
-    return wide + tall - both, n_wide + n_tall - n_both
+    def cross():
+        (wide, n_wide), (tall, n_tall), (both, n_both) = rect(a, b), rect(b, a), rect(b, b)
+        return wide + tall - both, n_wide + n_tall - n_both
+
+    # The square (waist 1, the default) with one box's gathers instead of three: 20 % of a map's time.
+    return lax.cond(jnp.all(b >= a), lambda: rect(a, a), cross)
 
 
 def window_coefficient(
