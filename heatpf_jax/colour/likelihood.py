@@ -147,18 +147,20 @@ def expected_radius_px(
     return jnp.where(ok & front_l & front_r, 0.5 * (left + right), 0.0)
 
 
-def _boxes(radius, shape):
-    """Per pixel, the rows ``[y0, y1)`` and columns ``[x0, x1)`` of the square of half-size ``radius`` around it,
-    clipped to the image."""
+def _boxes(radius, shape, rows=None):
+    """Per pixel, the rows ``[y0, y1)`` and columns ``[x0, x1)`` of the box of half-sizes ``radius`` (columns) and
+    ``rows`` (rows; default ``radius``: a square) around it, clipped to the image."""
     h, w = shape
     v, u = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
     r = radius.astype(jnp.int32)
-    return jnp.clip(v - r, 0, h), jnp.clip(v + r + 1, 0, h), jnp.clip(u - r, 0, w), jnp.clip(u + r + 1, 0, w)
+    q = r if rows is None else rows.astype(jnp.int32)
+    return jnp.clip(v - q, 0, h), jnp.clip(v + q + 1, 0, h), jnp.clip(u - r, 0, w), jnp.clip(u + r + 1, 0, w)
 
 
-def _box_sums(table, radius, shape):
-    """Per pixel, the bin counts and pixel count of the square of half-size ``radius`` around it."""
-    y0, y1, x0, x1 = _boxes(radius, shape)
+def _box_sums(table, radius, shape, rows=None):
+    """Per pixel, the bin counts and pixel count of the box of half-sizes ``radius`` by ``rows`` (default: the
+    square) around it."""
+    y0, y1, x0, x1 = _boxes(radius, shape, rows)
     return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
 
 
@@ -177,22 +179,16 @@ def _cross_sums(table, inner, waist, shape):
     """Per pixel, the bin counts and pixel count of the cross of half-sizes ``inner x b`` and ``b x inner`` around
     it (``b = round(waist * inner)``, clipped to ``[0, inner]``): the wide box plus the tall one less their
     overlap, each clipped to the image. ``waist`` 1 gives the square."""
-    h, w = shape
-    v, u = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
-    a = inner.astype(jnp.int32)
-    b = jnp.clip(jnp.round(waist * inner), 0.0, inner).astype(jnp.int32)
-
-    def rect(rx, ry):
-        y0, y1 = jnp.clip(v - ry, 0, h), jnp.clip(v + ry + 1, 0, h)
-        x0, x1 = jnp.clip(u - rx, 0, w), jnp.clip(u + rx + 1, 0, w)
-        return box_counts(table, y0, y1, x0, x1), ((y1 - y0) * (x1 - x0)).astype(jnp.float32)
+    a = inner
+    b = jnp.clip(jnp.round(waist * inner), 0.0, inner)
 
     def cross():
-        (wide, n_wide), (tall, n_tall), (both, n_both) = rect(a, b), rect(b, a), rect(b, b)
+        (wide, n_wide), (tall, n_tall), (both, n_both) = (
+            _box_sums(table, a, shape, b), _box_sums(table, b, shape, a), _box_sums(table, b, shape))
         return wide + tall - both, n_wide + n_tall - n_both
 
     # The square (waist 1, the default) with one box's gathers instead of three: 20 % of a map's time.
-    return lax.cond(jnp.all(b >= a), lambda: rect(a, a), cross)
+    return lax.cond(jnp.all(b >= a), lambda: _box_sums(table, a, shape), cross)
 
 
 def window_coefficient(
