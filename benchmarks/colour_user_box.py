@@ -252,13 +252,21 @@ def reference_frames(seq, info) -> dict[str, int]:
 
 def filter_error(seq, method: str, seed: int) -> float:
     """``METHOD`` or ``METHOD:NAME=VALUE[+...]``: static options and parameters by name, as ``benchmarks/worlds.py``
-    takes them (``heatmap:source=pixels+threshold=0.5``)."""
+    takes them (``heatmap:source=pixels+threshold=0.5``), on top of the sequence's own settings as ``heatpf run``
+    applies them (``heatpf colour``'s ``source=pixels``)."""
+    import contextlib
+    import io
+
     from worlds import variant_options  # benchmarks/worlds.py, beside this script
 
     from heatpf_jax import params as P
+    from heatpf_jax.cli.settings import sequence_settings
 
     name, _, spec = method.partition(":")
     options, overrides = variant_options(spec)
+    given = {item.partition("=")[0] for item in spec.split("+")} if "=" in spec else ({"source"} if spec else set())
+    with contextlib.redirect_stdout(io.StringIO()):  # as heatpf run: the sequence's settings beneath the spec's
+        options, overrides = sequence_settings(seq, "colour", [name], options, overrides, given)
     model, params = hp.build(name, options)
     if overrides:
         params = P.set_by_name(params, model.properties(), overrides)

@@ -102,6 +102,9 @@ def _stack(sequences: list[Sequence]) -> Sequence:
     fields = {}
     for name in Sequence._fields:
         values = [getattr(s, name) for s in sequences]
+        if name == "settings":  # not an array: kept where every sequence has the same
+            fields[name] = values[0] if all(v == values[0] for v in values) else None
+            continue
         fields[name] = None if any(v is None for v in values) else np.stack(values)
     return Sequence(**fields)
 
@@ -147,7 +150,7 @@ def evaluate_sequences(
     objects = truth[:, :, None, :] if targets is None else np.stack([np.asarray(t, np.float64) for t in targets])
     if objects.shape[:2] != truth.shape[:2] or objects.shape[-1] != 2:
         raise ValueError(f"targets: expected [T, B, 2] per sequence, got {objects.shape[1:]}")
-    batch = batch._replace(ground_truth=None, stamps=None)
+    batch = batch._replace(ground_truth=None, stamps=None, settings=None)
     keys = jax.vmap(lambda i: jax.random.fold_in(jax.random.key(seed), i))(np.arange(len(sequences)))
     results = []
     for variant in variants:

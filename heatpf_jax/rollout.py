@@ -121,8 +121,9 @@ def prepare_run(sequence: Sequence, params, model) -> tuple[Sequence, Any]:
     else:
         odometry = np.array(sequence.odometry, np.float32)
         odometry[0] = 0.0
-    # Ground truth, images and stamps are not inputs: dropping them keeps one compilation with or without them.
-    return sequence._replace(odometry=odometry, ground_truth=None, images=None, stamps=None,
+    # Ground truth, images, stamps and settings are not inputs: dropping them keeps one compilation with or
+    # without them.
+    return sequence._replace(odometry=odometry, ground_truth=None, images=None, stamps=None, settings=None,
                              **_pose_inputs(sequence, model)), params
 
 

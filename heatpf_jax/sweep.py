@@ -134,7 +134,7 @@ def _prepare(key, sequence: Sequence, params_batch, model, chunk, devices):
     # global array when the mesh spans several hosts (after jax.distributed.initialize()).
     params = jax.tree.map(lambda v: jax.make_array_from_callback(v.shape, sharding, lambda i, v=v: v[i]), host)
     odometry = jnp.asarray(sequence.odometry, jnp.float32).at[0].set(0.0)
-    sequence = sequence._replace(odometry=odometry, ground_truth=None, stamps=None)
+    sequence = sequence._replace(odometry=odometry, ground_truth=None, stamps=None, settings=None)
     return key, sequence, params, model, chunk, mesh, (n, order)
 
 

@@ -115,9 +115,12 @@ def colour_sequence(
 
     Returns:
         ``(sequence, reference)``: the new sequence (activations in ``[0, 1]``) and the
-        :class:`~heatpf_jax.colour.reference.Reference` it was made with.
+        :class:`~heatpf_jax.colour.reference.Reference` it was made with. The sequence's ``settings`` carry
+        :data:`~heatpf_jax.colour.likelihood.MAP_SETTINGS` (``source=pixels``: a colour blob's size is the window's,
+        not the ball's), which ``heatpf run`` applies; in Python pass them on yourself
+        (:func:`heatpf_jax.cli.settings.parse_settings` turns them into options).
     """
-    from heatpf_jax.colour.likelihood import colour_heatmaps
+    from heatpf_jax.colour.likelihood import MAP_SETTINGS, colour_heatmaps
     from heatpf_jax.colour.reference import SCALED_PARAMS, ReferenceOptions, box_reference, frames_histogram
     from heatpf_jax.colour.space import channel_means, exact_top_bins
 
@@ -160,7 +163,8 @@ def colour_sequence(
     timings["maps"] = time.perf_counter() - start
     if not np.all(np.isfinite(heat)):
         raise RuntimeError("the colour likelihood produced a non-finite value; please report this")
-    return seq._replace(heatmaps=np.clip(heat, 0.0, 1.0).astype(np.float32)), ref
+    return seq._replace(heatmaps=np.clip(heat, 0.0, 1.0).astype(np.float32),
+                        settings={**(seq.settings or {}), **MAP_SETTINGS}), ref
 
 
 def _spread(num: int, count: int = 8) -> np.ndarray:
@@ -169,6 +173,7 @@ def _spread(num: int, count: int = 8) -> np.ndarray:
 
 
 def cmd_colour(args: argparse.Namespace) -> int:
+    from heatpf_jax.colour.likelihood import MAP_SETTINGS
     from heatpf_jax.colour.reference import SCALED_PARAMS, ReferenceOptions
     from heatpf_jax.io.sequence import load_sequence, save_sequence
 
@@ -222,7 +227,9 @@ def cmd_colour(args: argparse.Namespace) -> int:
           f"in {elapsed:.2f} s (including compilation): reference {timings['reference']:.2f} s, compilation "
           f"{timings['compile']:.2f} s, maps {timings['maps']:.2f} s ({1000 * timings['maps'] / seq.num_steps:.1f} ms "
           f"a frame); activation mean {heat.mean():.4f}, max {heat.max():.3f}")
-    print(f"wrote {out}")
+    carried = ", ".join(f"{k}={v}" for k, v in MAP_SETTINGS.items())
+    print(f"wrote {out}, with the settings {carried} (a colour blob is as large as the window that made it, not as "
+          "the ball: none is placed in the air by its size); heatpf run applies them")
     return 0
 
 

@@ -21,6 +21,7 @@ from heatpf_jax.cli.settings import (
     method_with_settings,
     parse_seeds,
     scenario_names,
+    sequence_settings,
 )
 from heatpf_jax.io.files import check_input, check_output_dir
 
@@ -116,6 +117,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
             if scenario is None:
                 sequences = [load_sequence(args.input)]
                 check_burn_in(args.burn_in, sequences[0].num_steps)
+                given = {item.partition("=")[0].strip() for item in args.set or []}
+                methods = sorted({v.method for v in variants})
+                options, settings = sequence_settings(sequences[0], str(args.input), methods, options, settings,
+                                                      given, pinned=loaded is not None)
                 bar.update(1)
             else:
                 sequences, targets, factors = [], [], []

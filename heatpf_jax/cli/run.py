@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from heatpf_jax.cli.options import add_burn_in, add_method, add_params, add_set, error_stats, settings_with_params
-from heatpf_jax.cli.settings import check_burn_in, method_with_settings
+from heatpf_jax.cli.settings import check_burn_in, method_with_settings, sequence_settings
 from heatpf_jax.io.files import check_output, same_file, write_atomic
 
 __all__ = [
@@ -150,6 +150,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ValueError("--plot-step: only with --plot")
     bag_out = _bag_output(args, [args.input, out, modes_out, tracks_out, plot_out])
     seq = load_sequence(args.input)
+    given = {item.partition("=")[0].strip() for item in args.set or []}
+    options, settings = sequence_settings(seq, str(args.input), [args.method], options, settings, given,
+                                          pinned=args.params is not None)
     if seq.ground_truth is not None:
         check_burn_in(args.burn_in, seq.num_steps)
     if args.plot_step is not None and not 0 <= args.plot_step < seq.num_steps:

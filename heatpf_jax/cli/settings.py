@@ -27,6 +27,7 @@ __all__ = [
     "parse_settings",
     "parse_value",
     "scenario_names",
+    "sequence_settings",
     "unused_options",
 ]
 
@@ -276,6 +277,73 @@ def checked_settings(args, methods, base=None):
     for method in methods:
         model, params = build(method, options)
         validate_params(P.set_by_name(params, model.properties(), settings, skip_unknown=True), model)
+    return options, settings
+
+
+def sequence_settings(seq, label: str, methods, options, settings: dict, given, pinned: bool = False):
+    """The sequence's own settings (``Sequence.settings``: ``heatpf colour``'s ``source=pixels``) beneath the user's.
+
+    Each setting that the user did not give (``given``: the names of ``--set``) and that changes one of ``methods`` is
+    applied; with ``pinned`` (a ``--params`` file holds the options and parameters) none is. One line names what
+    was applied and what was not, and why.
+
+    Args:
+        seq: the loaded :class:`~heatpf_jax.io.sequence.Sequence`.
+        label: the sequence's name in the printed line (its file).
+        methods: the methods run.
+        options: the :class:`~heatpf_jax.presets.FilterOptions` so far.
+        settings: the parameter settings so far, ``{name: value}``.
+        given: the names the user set (short, dotted or aliases).
+        pinned: a ``--params`` file gives the options and parameters.
+
+    Returns:
+        ``(options, settings)`` with the sequence's settings applied.
+
+    Raises:
+        ValueError: ``LABEL: settings: ...`` where a value does not parse.
+    """
+    from heatpf_jax.presets import FilterOptions, build
+
+    carried = seq.settings or {}
+    if not carried:
+        return options, settings
+    methods = list(methods)
+    given = set(given)
+    given_full = given | {full_name(g, m, options) for g in given for m in methods}
+    applied, overridden, unused = [], [], []
+    settings = dict(settings)
+    for name, value in carried.items():
+        item = f"{name}={format_value(value)}"
+        if pinned or name in given_full or any(full_name(name, m, options) in given_full for m in methods):
+            overridden.append(item)
+            continue
+        if name not in FilterOptions._fields:
+            try:
+                param_of(ALIASES.get(name, name), methods, options)
+            except ValueError:
+                unused.append(item)
+                continue
+        try:
+            new_options, new = parse_settings([item], methods, options)
+        except ValueError as err:
+            raise ValueError(f"{label}: settings: {err}") from None
+        if name in FilterOptions._fields and all(
+            build(m, new_options).model == build(m, options).model for m in methods
+        ):
+            unused.append(item)
+            continue
+        options, settings = new_options, {**settings, **new}
+        applied.append(item)
+    which = f"method {methods[0]}" if len(methods) == 1 else "any of the methods run"
+    parts = []
+    if applied:
+        parts.append(f"{', '.join(applied)} from the sequence's settings (--set NAME=VALUE overrides)")
+    if overridden:
+        why = "the --params file gives the settings" if pinned else "--set gives them"
+        parts.append(f"its {', '.join(overridden)} not applied ({why})")
+    if unused:
+        parts.append(f"its {', '.join(unused)} not used by {which}")
+    print(f"{label}: " + "; ".join(parts))
     return options, settings
 
 

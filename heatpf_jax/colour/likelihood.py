@@ -60,6 +60,7 @@ from jaxtyping import Array, ArrayLike, Float, UInt8
 from heatpf_jax.colour.space import DEFAULT_BINS, MAX_BOX_HALF, balance, box_counts, rgi_bins
 
 __all__ = [
+    "MAP_SETTINGS",
     "ColourParams",
     "blob_half_size",
     "colour_heatmaps",
@@ -69,6 +70,13 @@ __all__ = [
     "window_half_sizes",
 ]
 
+
+MAP_SETTINGS = {"source": "pixels"}
+"""What a filter of colour maps must follow (``Sequence.settings`` of :func:`heatpf_jax.cli.colour.colour_sequence`):
+a colour map's blob is as large as the object window that made it, and that window is a ground ball's at its pixel
+(:func:`expected_radius_px`), so the blob's size says nothing of the ball's height. A source that places blobs in
+the air by their size (:class:`~heatpf_jax.sources.lofted.LoftedSource`, ``heatmap``'s own) reads its scatter as
+flight; every pixel is measured where it projects instead (``source=pixels``, the paper's source)."""
 
 _CHUNK = 64  # bins per summed-area table (_chunk_tables): 64 bins were the fastest of 16-64 per bin
 

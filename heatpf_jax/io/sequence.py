@@ -14,6 +14,7 @@
 | pose_confidence | float64 [T], optional | its confidence in [0, 1] (1 if absent); needs robot_pose |
 | images       | uint8 [T, H, W, 3], optional | RGB frames at the heat maps' size (``heatpf colour``) |
 | stamps       | int64 [T], optional    | the time of step t, ns, non-decreasing (an imported bag's clock) |
+| settings     | str [] (a JSON object), optional | its maker's settings for filtering it, as ``--set`` takes them |
 
 :func:`load_sequence` checks every key and raises :class:`SequenceError` with one
 line naming the file, the key (where one is at fault) and the problem, also for a
@@ -21,11 +22,21 @@ file it cannot read (empty, damaged, a directory, a .npy array, text, object
 arrays); ``stamps`` (kept by ``heatpf import-rosbag``) stamps the messages of ``heatpf run --bag``, so
 that they play beside the robot's own bag; :func:`save_sequence` validates first and writes atomically (a
 temporary file renamed into place), so nothing is half-written.
+
+``settings`` is what the sequence's maker knows about its heat maps that a filter should follow: ``{name: value}``
+(text, numbers or booleans) as ``heatpf run --set`` takes them. ``heatpf colour`` writes ``{"source": "pixels"}``:
+a colour map's blob has the size of the colour window, which is a ground ball's there, not the size of the ball, so
+no blob may be placed in the air by its size. ``heatpf run`` and ``heatpf eval`` apply the settings beneath the
+user's own (``--set``, ``--params``) and print a line naming each one applied
+(:func:`heatpf_jax.cli.settings.sequence_settings`); in Python, pass them to
+:func:`heatpf_jax.presets.build` yourself.
 """
 
 from __future__ import annotations
 
 import codecs
+import json
+import math
 import os
 import warnings
 import zipfile
@@ -70,6 +81,7 @@ class Sequence(NamedTuple):
     pose_confidence: np.ndarray | None = None
     images: np.ndarray | None = None
     stamps: np.ndarray | None = None
+    settings: dict[str, str | float | int | bool] | None = None
 
     @property
     def num_steps(self) -> int:
@@ -100,6 +112,20 @@ _SPEC = {
 }
 OPTIONAL_INPUTS = ("robot_pose", "pose_confidence", "images")  # optional keys a method may read
 _REQUIRED = tuple(k for k in _SPEC if k not in ("ground_truth", "stamps", *OPTIONAL_INPUTS))
+
+
+def _settings_from_text(arr: np.ndarray) -> dict:
+    """The ``settings`` member (a JSON object as text) as a dict, or a SequenceError."""
+    if arr.shape != () or arr.dtype.kind != "U":
+        raise SequenceError(f"settings: expected text (a JSON object), got {_dtype_words(arr.dtype)} of shape "
+                            f"{arr.shape}")
+    try:
+        value = json.loads(str(arr))
+    except ValueError as err:
+        raise SequenceError(f"settings: not JSON ({err.msg} at character {err.pos})") from None
+    if not isinstance(value, dict):
+        raise SequenceError(f"settings: expected a JSON object, got {type(value).__name__}")
+    return value
 
 
 def _check_array(key: str, value, dims: dict[str, int]) -> np.ndarray:
@@ -178,6 +204,7 @@ def validate_sequence(seq: Sequence) -> Sequence:
         bad = int(np.flatnonzero(np.diff(out["stamps"]) < 0)[0]) + 1
         raise SequenceError(f"stamps: must not decrease, got {int(out['stamps'][bad])} ns at step {bad} after "
                             f"{int(out['stamps'][bad - 1])} ns")
+    settings = _check_settings(seq.settings)
     if dims["H"] < 1 or dims["W"] < 1:
         raise SequenceError(f"heatmaps: empty heat maps of shape {out['heatmaps'].shape[1:]}")
     heat = out["heatmaps"]
@@ -218,7 +245,28 @@ def validate_sequence(seq: Sequence) -> Sequence:
         pose_confidence=_float64(out["pose_confidence"]),
         images=out["images"],
         stamps=None if out["stamps"] is None else out["stamps"].astype(np.int64, copy=False),
+        settings=settings,
     )
+
+
+def _check_settings(settings) -> dict[str, str | float | int | bool] | None:
+    """``settings`` as a plain dict (``None`` stays), or a SequenceError naming the entry at fault."""
+    if settings is None:
+        return None
+    if not isinstance(settings, dict):
+        raise SequenceError(f"settings: expected a mapping of names to values, got {type(settings).__name__}")
+    out = {}
+    for name, value in settings.items():
+        if not isinstance(name, str) or not name.strip():
+            raise SequenceError(f"settings: names must be non-empty text, got {name!r}")
+        if isinstance(value, np.generic):
+            value = value.item()
+        if not isinstance(value, str | bool | int | float):
+            raise SequenceError(f"settings: {name}: expected text, a number or a boolean, got {type(value).__name__}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SequenceError(f"settings: {name}: non-finite value {value}")
+        out[name] = value
+    return out
 
 
 def _float64(arr: np.ndarray | None) -> np.ndarray | None:
@@ -256,6 +304,8 @@ def load_sequence(path: str | os.PathLike) -> Sequence:
         missing = [k for k in _REQUIRED if k not in present]
         if missing:
             raise SequenceError(f"{missing[0]}: missing (required keys: {', '.join(_REQUIRED)})")
+        if "settings" in present:
+            present["settings"] = _settings_from_text(present["settings"])
         return validate_sequence(Sequence(**present))
     except SequenceError as err:
         raise SequenceError(f"{path}: {err}") from None
@@ -294,7 +344,7 @@ def _read_archive(path: Path) -> dict[str, np.ndarray]:
         with archive:
             members = {name.removesuffix(".npy"): name for name in archive.namelist()}
             return {key: _read_member(archive, members[key], key)
-                    for key in (*_SPEC, "format_version") if key in members}
+                    for key in (*_SPEC, "format_version", "settings") if key in members}
 
 
 def _kind_of(head: bytes) -> str:
@@ -336,6 +386,8 @@ def _read_member(archive: zipfile.ZipFile, name: str, key: str) -> np.ndarray:
 
 
 def _expected_dtype(key: str) -> str:
+    if key == "settings":
+        return "text (a JSON object)"
     return _SPEC[key][1] if key in _SPEC else "int64"
 
 
@@ -343,6 +395,8 @@ def save_sequence(path: str | os.PathLike, seq: Sequence) -> None:
     """Validates ``seq`` and writes it atomically as a version-1 .npz file."""
     seq = validate_sequence(seq)
     path = Path(path)
-    arrays = {k: v for k, v in seq._asdict().items() if v is not None}
+    arrays = {k: v for k, v in seq._asdict().items() if v is not None and k != "settings"}
+    if seq.settings is not None:
+        arrays["settings"] = np.asarray(json.dumps(seq.settings, sort_keys=True))
     arrays["format_version"] = np.asarray(FORMAT_VERSION, np.int64)
     write_atomic(path, lambda fh: np.savez_compressed(fh, **arrays), binary=True)

@@ -40,6 +40,9 @@ def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
     assert (f"reference: the object's box {','.join(map(str, ref.box))} in frame 1 (from the box 20,10,4,4); "
             f"background: the ring around it in frame 1; ") in printed
     assert f"its own score {ref.score:.3f}" in printed and "compilation" in printed and "ms a frame" in printed
+    # A colour blob is as large as the window that made it: the file tells heatpf run not to read its size.
+    assert got.settings == want.settings == {"source": "pixels"}
+    assert f"wrote {out}, with the settings source=pixels (a colour blob is as large as the window" in printed
     before = out.read_bytes()
     assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(out)]) == 2
     assert "--output" in _error(capsys) and out.read_bytes() == before  # never replaced without --force
@@ -95,6 +98,7 @@ def test_a_users_box_at_the_default_threshold(tmp_path, full_size, capsys):
     capsys.readouterr()
     csv = tmp_path / "est.csv"
     assert main(["run", str(out), "-o", str(csv)]) == 0
+    assert f"{out}: source=pixels from the sequence's settings" in capsys.readouterr().out
     est = np.loadtxt(csv, delimiter=",", skiprows=1)[:, 1:3]
     error = np.linalg.norm(est - seq.ground_truth, axis=1)
     assert error[10:20].mean() < 0.03, error  # the ball in view (it is hidden on steps 20-26 of this seed)

@@ -43,6 +43,11 @@ def test_eval_on_a_recording_and_its_errors(tmp_path, seq_file, capsys):
     assert f"scenario {path.stem}: 1 sequence(s) x {seq.num_steps} steps" in out
     shown = [line.split()[0] for line in out.splitlines()[2:] if line.strip()]
     assert shown == ["kalman", "paper", "paper,", "paper,"]  # --method picks methods (paper with its ablations)
+    assert "the sequence's settings" not in out
+    advised = tmp_path / "advised.npz"  # paper's source is already the pixels: a setting that changes nothing
+    hp.save_sequence(advised, seq._replace(settings={"source": "pixels"}))
+    assert main(["eval", "--input", str(advised), "--method", "paper", "--method", "kalman", *small]) == 0
+    assert f"{advised}: its source=pixels not used by any of the methods run" in capsys.readouterr().out
     nogt = tmp_path / "nogt.npz"
     hp.save_sequence(nogt, seq._replace(ground_truth=None))
     assert main(["eval", "--input", str(nogt)]) == 2

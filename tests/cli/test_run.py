@@ -119,3 +119,33 @@ def test_run_writes_modes_and_tracks_csv_equal_to_the_runs(tmp_path, seq_file, c
     cov = np.asarray(ref.cov)[t, j]
     np.testing.assert_allclose(table[:, 5:], np.stack([cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]], 1), atol=2e-6)
     np.testing.assert_allclose(np.bincount(t, table[:, 2]), 1.0, atol=1e-4)  # weights sum to 1 per step
+
+
+def test_the_sequences_settings_apply_beneath_set(tmp_path, seq_file, capsys):
+    """A sequence's own settings (``heatpf colour`` writes ``source=pixels``) are applied beneath ``--set``, with a
+    line naming them: the estimates are those of the same settings given by ``--set``; a name the user sets keeps
+    the user's value, a ``--params`` file keeps its own, and a setting a method does not use is said to be unused."""
+    path, seq = seq_file
+    advised = tmp_path / "advised.npz"
+    hp.save_sequence(advised, seq._replace(settings={"source": "pixels", "threshold": 0.6}))
+
+    def estimates(args):
+        out = tmp_path / "est.csv"
+        assert main(["run", *args, "-o", str(out), "--force", *SMALL_ARGS]) == 0
+        return np.loadtxt(out, delimiter=",", skiprows=1), capsys.readouterr().out
+
+    applied, printed = estimates([str(advised)])
+    assert (f"{advised}: source=pixels, threshold=0.6 from the sequence's settings (--set NAME=VALUE overrides)"
+            in printed)
+    by_hand, printed = estimates([str(path), "--set", "source=pixels", "--set", "threshold=0.6"])
+    assert "the sequence's settings" not in printed
+    np.testing.assert_allclose(applied, by_hand, atol=1e-6)
+    default, _ = estimates([str(path)])
+    assert not np.allclose(applied, default, atol=1e-3)  # a threshold of 0.6 keeps fewer pixels
+    mine, printed = estimates([str(advised), "--set", "threshold=0.3"])
+    assert f"{advised}: source=pixels from the sequence's settings" in printed
+    assert "its threshold=0.6 not applied (--set gives them)" in printed
+    pixels, _ = estimates([str(path), "--set", "source=pixels"])
+    np.testing.assert_allclose(mine, pixels, atol=1e-6)
+    assert main(["run", str(advised), "-o", str(tmp_path / "k.csv"), "--method", "kalman"]) == 0
+    assert "its source=pixels not used by method kalman" in capsys.readouterr().out

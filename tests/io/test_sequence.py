@@ -259,3 +259,36 @@ def test_stamps_round_trip_and_are_checked(tmp_path, small_sequence):
     plain = hp.run(jax.random.key(0), small_sequence, params, model).info.mean
     timed = hp.run(jax.random.key(0), got, params, model).info.mean
     np.testing.assert_array_equal(np.asarray(timed), np.asarray(plain))
+
+
+def test_settings_round_trip_and_are_checked(tmp_path, seq):
+    """The maker's settings: a JSON object of names and plain values, kept through save and load, checked with one
+    line naming ``settings`` (and the entry at fault), and never an input of the run."""
+    import jax
+
+    advice = {"source": "pixels", "threshold": 0.25, "k": 3, "wide": True}
+    path = tmp_path / "advised.npz"
+    hp.save_sequence(path, seq._replace(settings=advice))
+    got = hp.load_sequence(path)
+    assert got.settings == advice and hp.load_sequence(_plain_file(tmp_path, seq)).settings is None
+    with zipfile.ZipFile(path) as archive:  # text in the archive, never a pickled object
+        assert "settings.npy" in archive.namelist()
+    for text, fragment in (("[1, 2]", "expected a JSON object, got list"), ("{source", "not JSON"),
+                           ('{"k": NaN}', "k: non-finite value nan"), ('{"k": [1]}', "k: expected text, a number")):
+        bad = _save_raw(tmp_path / "bad.npz", **_bad(seq), settings=np.asarray(text))
+        message = _load_error(bad)
+        assert message.startswith(f"{bad}: settings: ") and fragment in message, message
+    bad = _save_raw(tmp_path / "bad.npz", **_bad(seq), settings=np.zeros(2))
+    assert "settings: expected text (a JSON object), got float64" in _load_error(bad)
+    with pytest.raises(hp.SequenceError, match="^settings: expected a mapping of names to values, got list$"):
+        hp.validate_sequence(seq._replace(settings=["source=pixels"]))
+    model, params = hp.build("kalman")
+    plain = hp.run(jax.random.key(0), seq, params, model).info.mean
+    advised = hp.run(jax.random.key(0), got, params, model).info.mean
+    np.testing.assert_allclose(np.asarray(advised), np.asarray(plain), atol=1e-6)
+
+
+def _plain_file(tmp_path, seq):
+    path = tmp_path / "plain.npz"
+    hp.save_sequence(path, seq)
+    return path
