@@ -33,6 +33,7 @@ from heatpf_jax.cli.settings import (
     parse_grid,
     parse_seeds,
     scenario_names,
+    sequence_settings,
 )
 from heatpf_jax.cli.sweep_record import RECORD_INTRO, grid_key, read_done, sweep_record
 from heatpf_jax.io.files import check_input, check_output, write_atomic
@@ -87,6 +88,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise ValueError(f"--top: must be >= 0, got {args.top}")
     check_burn_in(args.burn_in, steps)
     out = check_output("--output", args.output, inputs=[args.input], replace=True)
+    recording = None
+    if args.input is not None:
+        recording = load_sequence(args.input)
+        check_burn_in(args.burn_in, recording.num_steps)
+        given = {item.partition("=")[0].strip() for item in args.set or []} | set(grid)
+        advised = sequence_settings(recording, str(args.input), [args.method], options, settings, given,
+                                    pinned=args.params is not None)
+        if advised != (options, settings):
+            options, settings = advised
+            model, params = method_with_settings(args.method, options, settings)
     names = list(grid)
     combos = list(itertools.product(*grid.values()))
     sets = [P.set_by_name(params, model.properties(), dict(zip(names, c, strict=True))) for c in combos]
@@ -97,9 +108,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     columns = ["index", *names, "mean_error", "max_error", "std_error"]
     done = read_done(out, record, columns)
 
-    if args.input is not None:
-        sequences = [load_sequence(args.input)]
-        check_burn_in(args.burn_in, sequences[0].num_steps)
+    if recording is not None:
+        sequences = [recording]
     else:
         sequences = [simulate(args.scenario, seed, num_steps=steps) for seed in seeds]
     if any(s.ground_truth is None for s in sequences):

@@ -30,7 +30,13 @@ from heatpf_jax.cli.options import (
     settings_with_params,
     table_lines,
 )
-from heatpf_jax.cli.settings import check_burn_in, method_with_settings, parse_seeds, scenario_names
+from heatpf_jax.cli.settings import (
+    check_burn_in,
+    method_with_settings,
+    parse_seeds,
+    scenario_names,
+    sequence_settings,
+)
 from heatpf_jax.io.files import check_input, check_output, same_file, write_atomic
 
 __all__ = ["add_parser", "cmd_tune"]
@@ -238,6 +244,18 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if data.validate or data.validate_seeds is not None:
         validation = _tune_sequences(data.validate, data.scenario, data.validate_seeds, data.length, args.loss,
                                      args.burn_in, "validation")
+    if data.files:  # what every file asks alike, beneath --set
+        loaded = train + (validation or [])
+        shared = {k: v for k, v in (loaded[0].settings or {}).items()
+                  if all((s.settings or {}).get(k, None) == v for s in loaded)}
+        label = data.files[0] if len(loaded) == 1 else "the sequence files"
+        given = {item.partition("=")[0].strip() for item in args.set or []}
+        advised = sequence_settings(loaded[0]._replace(settings=shared or None), label, [args.method], options,
+                                    settings, given, pinned=args.params is not None)
+        if advised != (options, settings):
+            options, settings = advised
+            model, params = method_with_settings(args.method, options, settings)
+            names = _tune_names(args.tune, args.method, model)
     print(f"tune {args.method}: {len(train)} training sequence(s) x {train[0].num_steps} steps, "
           f"{args.filter_seeds} filter seed(s) each, {args.steps} gradient steps (the first compiles)")
     bar = progress_bar(args.steps)

@@ -26,8 +26,8 @@ temporary file renamed into place), so nothing is half-written.
 ``settings`` is what the sequence's maker knows about its heat maps that a filter should follow: ``{name: value}``
 (text, numbers or booleans) as ``heatpf run --set`` takes them. ``heatpf colour`` writes ``{"source": "pixels"}``:
 a colour map's blob has the size of the colour window, which is a ground ball's there, not the size of the ball, so
-no blob may be placed in the air by its size. ``heatpf run`` and ``heatpf eval`` apply the settings beneath the
-user's own (``--set``, ``--params``) and print a line naming each one applied
+no blob may be placed in the air by its size. ``heatpf run``, ``eval``, ``sweep`` and ``tune`` apply the
+settings beneath the user's own (``--set``, ``--grid``, ``--params``) and print a line naming each one applied
 (:func:`heatpf_jax.cli.settings.sequence_settings`); in Python, pass them to
 :func:`heatpf_jax.presets.build` yourself.
 """

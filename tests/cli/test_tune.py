@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
+import heatpf_jax.cli.sweep
 import heatpf_jax.evaluate
 import heatpf_jax.io.sequence
 import heatpf_jax.sim
@@ -313,3 +314,38 @@ def test_save_and_load_round_trip(tmp_path):
         assert np.float32(a) == np.float32(b)  # float32 values survive the shortest text form
     with pytest.raises(ValueError, match="^params: reserved"):
         save_params_file(path, "heatmap", options, params, params={})
+
+
+def test_sweep_and_tune_follow_the_files_settings(tuned, tmp_path, monkeypatch, capsys):
+    """A sequence's settings (``heatpf colour``'s ``source=pixels``) reach the model of sweep and tune, beneath
+    ``--set`` and the grid, with a line naming them; tune takes what every one of its files asks alike."""
+    seq = tuned["seq"]
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    hp.save_sequence(a, seq._replace(settings={"source": "pixels", "threshold": 0.5}))
+    hp.save_sequence(b, seq._replace(settings={"source": "pixels", "threshold": 0.6}))
+    seen = {}
+
+    def stand_in(key, train, params, model, **kwargs):
+        seen.update(model=model, params=params, names=kwargs["names"])
+        raise _Reached
+
+    monkeypatch.setattr(heatpf_jax.tuning, "tune", stand_in)
+    with pytest.raises(_Reached):
+        main(["tune", str(a), str(b), "--steps", "1", "-o", str(tmp_path / "t.json"), *SMALL_ARGS])
+    assert "the sequence files: source=pixels from the sequence's settings" in capsys.readouterr().out
+    assert isinstance(seen["model"].source, hp.sources.PixelSource)
+    assert float(seen["params"].source.threshold) == pytest.approx(0.3)  # the files disagree on it: not applied
+
+    def capture(args, out, model, sets, combos, todo, sequences, saved):
+        seen.update(model=model, sets=sets)
+        raise _Reached
+
+    monkeypatch.setattr(heatpf_jax.cli.sweep, "_sweep_rows", capture)
+    with pytest.raises(_Reached):
+        main(["sweep", str(a), "--grid", "k=1,2", "--set", "threshold=0.4", "-o", str(tmp_path / "s.csv"),
+              *SMALL_ARGS])
+    printed = capsys.readouterr().out
+    assert f"{a}: source=pixels from the sequence's settings" in printed
+    assert "its threshold=0.5 not applied (--set gives them)" in printed
+    assert isinstance(seen["model"].source, hp.sources.PixelSource)
+    assert [float(p.source.threshold) for p in seen["sets"]] == pytest.approx([0.4, 0.4])
