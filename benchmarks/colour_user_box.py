@@ -228,12 +228,35 @@ def _plain(seq, t0: int, box):
     return seq._replace(heatmaps=np.clip(np.asarray(heat), 0.0, 1.0).astype(np.float32))
 
 
+def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
+    """``heatpf colour --reference``: an image found in the frames pixel for pixel (a PNG cut out of one) is taken
+    as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`); with ``jpeg`` the image
+    goes through a JPEG file first (quality 90, Pillow), which is not found, and is taken by itself."""
+    from heatpf_jax.cli.colour import colour_sequence
+    from heatpf_jax.colour.crop import find_crop
+
+    if jpeg:
+        import io
+
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(image).save(buffer, format="JPEG", quality=90)
+        image = np.asarray(Image.open(io.BytesIO(buffer.getvalue())).convert("RGB"))
+    crop = find_crop(seq.images, image)
+    if crop is None:
+        return colour_sequence(seq, reference_image=image, params=params)
+    h, w = image.shape[:2]
+    return colour_sequence(seq, box=(crop.x, crop.y, w, h), frame=crop.frame, params=params)
+
+
 def reference_frames(seq, info) -> dict[str, int]:
     """Frames a user might take the reference in: the first where the ball is visible (``first``), the one
     where it moves fastest in the image (``blur``: the most motion blur), and the one whose light is the most
     different from the first's (``light``: the largest change of the channel means' ratios), each with the
     ball visible and at least 10 px inside the image. In ``main``'s ``--frames``, ``NAME-image`` is that frame's
-    box saved as an image and given as ``--reference`` (its background: the input's frames), ``NAME-plain``
+    box saved as an image and given as ``--reference`` (found in the frames, pixel for pixel: the box's reference),
+    ``NAME-jpeg`` the same saved as a JPEG (not found: its background is the input's frames), ``NAME-plain``
     the previous release's reference from it (:func:`_plain`)."""
     h, w = seq.heatmaps.shape[1:]
     uv = np.array([project_centre(np.array([*g, float(seq.ball_radius)]), seq.intrinsics, c)[:2]
@@ -350,8 +373,8 @@ def main(argv=None) -> int:
     parser.add_argument("--scales", default="1.1,1.25,1.4")
     parser.add_argument("--offsets", default="0,0.25")
     parser.add_argument("--frames", default="first,blur,light,first-image,first-plain",
-                        help="reference frames (reference_frames); NAME-image: that frame's box as an image; "
-                        "NAME-plain: the previous release's reference")
+                        help="reference frames (reference_frames); NAME-image: that frame's box as an image "
+                        "(NAME-jpeg: as a JPEG); NAME-plain: the previous release's reference")
     parser.add_argument("--theta", type=float, default=None, help="eq. 3's theta (default: heatpf colour's)")
     parser.add_argument("--window-scale", type=float, default=None,
                         help="the object window's half-size over the ball's radius (default: heatpf colour's)")
@@ -378,16 +401,16 @@ def main(argv=None) -> int:
             picks = reference_frames(seq, info)
             detector = {m: filter_error(seq, m, seed) for m in methods}
             for which in args.frames.split(","):
-                t0 = picks[which.removesuffix("-image").removesuffix("-plain")]
+                t0 = picks[which.removesuffix("-image").removesuffix("-jpeg").removesuffix("-plain")]
                 for scale in scales:
                     for offset in offsets:
                         box = ball_box(seq, info, t0, scale, offset)
                         if which.endswith("-plain"):  # the previous release: the whole box, the coefficient's scale
                             colour, ref = _plain(seq, t0, box), None
-                        elif which.endswith("-image"):  # the box saved as an image: --reference BOX.png
+                        elif which.endswith(("-image", "-jpeg")):  # the box saved: --reference BOX.png / .jpg
                             x, y, w, h = box
-                            colour, ref = colour_sequence(seq, reference_image=seq.images[t0, y:y + h, x:x + w],
-                                                          params=params)
+                            colour, ref = _image_reference(seq, seq.images[t0, y:y + h, x:x + w], params,
+                                                           jpeg=which.endswith("-jpeg"))
                         else:
                             colour, ref = colour_sequence(seq, box=box, frame=t0, params=params)
                         errs = {m: filter_error(colour, m, seed) for m in methods}

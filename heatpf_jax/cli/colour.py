@@ -7,14 +7,16 @@
 
 The reference comes from a box in frame ``N`` of the input's own ``images``, or from an image of the object
 (PNG/JPEG through Pillow, ``pip install 'heatpf-jax[rgb]'``, or a ``.npy`` ``uint8 [h, w, 3]``), in ``--box`` if
-given. The box may hold background (a box around a ball holds grass in its corners, more when drawn loosely or
-off-centre): :func:`heatpf_jax.colour.reference.box_reference` finds the object in it and weights down the
-colours of the background (the ring around the box, or for an image of the object the input's frames;
-``--background``). The maps are divided by the reference's own score, so that the object as it looks in the
-reference is at about 1 and the filters' default threshold applies, and every frame is brought under the
-reference's light first. ``OUT.npz`` is the input with ``heatmaps`` replaced by the colour likelihood
-(:func:`colour_sequence`, :func:`heatpf_jax.colour.likelihood.colour_heatmaps`). Every argument is checked
-before any computation; an existing ``OUT.npz`` is replaced only with ``--force``, and never the input.
+given; an image that is, pixel for pixel, a box of one of the input's frames (a PNG cut out of a frame) is taken as
+that box in that frame (:func:`heatpf_jax.colour.crop.find_crop`), with a printed line. The box may hold background
+(a box around a ball holds grass in its corners, more when drawn loosely or off-centre):
+:func:`heatpf_jax.colour.reference.box_reference` finds the object in it and weights down the colours of the
+background (the ring around the box, or for an image of the object the input's frames; ``--background``). The maps
+are divided by the reference's own score, so that the object as it looks in the reference is at about 1 and the
+filters' default threshold applies, and every frame is brought under the reference's light first. ``OUT.npz`` is the
+input with ``heatmaps`` replaced by the colour likelihood (:func:`colour_sequence`,
+:func:`heatpf_jax.colour.likelihood.colour_heatmaps`). Every argument is checked before any computation; an existing
+``OUT.npz`` is replaced only with ``--force``, and never the input.
 """
 
 from __future__ import annotations
@@ -173,6 +175,7 @@ def _spread(num: int, count: int = 8) -> np.ndarray:
 
 
 def cmd_colour(args: argparse.Namespace) -> int:
+    from heatpf_jax.colour.crop import find_crop
     from heatpf_jax.colour.likelihood import MAP_SETTINGS
     from heatpf_jax.colour.reference import SCALED_PARAMS, ReferenceOptions
     from heatpf_jax.io.sequence import load_sequence, save_sequence
@@ -207,12 +210,20 @@ def cmd_colour(args: argparse.Namespace) -> int:
         _check_box(box, seq.images.shape[1:3], f"frame {args.frame}")
     options = ReferenceOptions(intensity_smoothing=args.smoothing, chroma_smoothing=args.chroma_smoothing)
     params = SCALED_PARAMS._replace(theta=args.theta, window_scale=args.window_scale, window_waist=args.window_waist)
+    frame = args.frame
+    crop = None if reference_image is None else find_crop(seq.images, reference_image)
+    if crop is not None:  # the image is a box of one of the frames: the reference is that box's, in its frame
+        h, w = reference_image.shape[:2]
+        x, y, bw, bh = (0, 0, w, h) if box is None else box
+        box, frame, reference_image = (crop.x + x, crop.y + y, bw, bh), crop.frame, None
+        print(f"--reference: {args.reference} is the box {crop.x},{crop.y},{w},{h} of frame {crop.frame}, pixel for "
+              "pixel: the reference is taken there, as with --box and --frame")
     timings: dict[str, float] = {}
-    colour, ref = colour_sequence(seq, box=box, frame=args.frame, reference_image=reference_image,
+    colour, ref = colour_sequence(seq, box=box, frame=frame, reference_image=reference_image,
                                   background=args.background, options=options, params=params, timings=timings)
     save_sequence(out, colour)
     heat = colour.heatmaps
-    where = f"frame {args.frame}" if reference_image is None else str(args.reference)
+    where = f"frame {frame}" if reference_image is None else str(args.reference)
     source = {"ring": f"the ring around it in {where}", "frames": "the input's frames",
               "none": "none (not weighted)"}[_background_kind(args.background, reference_image)]
     print(f"reference: the object's box {','.join(map(str, ref.box))} in {where} (from the box "
@@ -247,13 +258,15 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
                "est.csv (the maps are divided by the reference's own score: the object is at about 1).",
     )
     p.add_argument("input", help="sequence file (.npz, version 1) with images (uint8 [T, H, W, 3])")
-    p.add_argument("--reference", metavar="REF.png", help="image of the object (PNG/JPEG, or .npy uint8 [h, w, 3])")
+    p.add_argument("--reference", metavar="REF.png", help="image of the object (PNG/JPEG, or .npy uint8 [h, w, 3]); "
+                   "one cut out of a frame of the input, pixel for pixel, is taken as that box in that frame")
     p.add_argument("--box", metavar="x,y,w,h", help="the object's box, pixels: in --reference, or in --frame")
     p.add_argument("--frame", type=int, help="take the reference from --box in this frame of the input")
     p.add_argument("--background", default="auto", choices=("auto", "ring", "frames", "none"),
                    help="the colours the reference weights down (Comaniciu et al.'s background-weighted "
                    "histogram): the ring around the box (in the image the box is in), the input's frames, or none; "
-                   "auto (default): the ring for --frame, the frames for --reference")
+                   "auto (default): the ring for --frame (and for a --reference found in a frame), the frames for "
+                   "--reference")
     p.add_argument("--output", "-o", required=True, help="the new sequence (not replaced if it exists, unless --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --output")
     p.add_argument("--theta", type=float, default=0.35, help="eq. 3's lower limit, a share of the reference's own "

@@ -1,7 +1,9 @@
 """Colour heat maps from RGB frames (Olufs 2): colour space, reference histogram, likelihood maps.
 """
 
+from heatpf_jax.colour.crop import Crop, find_crop
 from heatpf_jax.colour.likelihood import (
+    MAP_SETTINGS,
     ColourParams,
     blob_half_size,
     colour_heatmaps,
@@ -46,7 +48,9 @@ from heatpf_jax.colour.space import (
 __all__ = [
     "BinTable",
     "ColourParams",
+    "Crop",
     "DEFAULT_BINS",
+    "MAP_SETTINGS",
     "MAX_BOX_HALF",
     "MAX_BOX_PIXELS",
     "ObjectFit",
@@ -66,6 +70,7 @@ __all__ = [
     "ellipse_prior",
     "exact_top_bins",
     "expected_radius_px",
+    "find_crop",
     "frames_histogram",
     "heaviest_bins",
     "histogram",

@@ -102,11 +102,24 @@ def test_a_users_box_at_the_default_threshold(tmp_path, full_size, capsys):
     est = np.loadtxt(csv, delimiter=",", skiprows=1)[:, 1:3]
     error = np.linalg.norm(est - seq.ground_truth, axis=1)
     assert error[10:20].mean() < 0.03, error  # the ball in view (it is hidden on steps 20-26 of this seed)
+    # The box cut out and saved as an image is found in frame 0, pixel for pixel: the same reference, the same maps.
     x, y, w, h = box
     Image.fromarray(seq.images[0, y:y + h, x:x + w]).save(tmp_path / "ball.png")
     out_png = tmp_path / "colour_png.npz"
     assert main(["colour", str(path), "--reference", str(tmp_path / "ball.png"), "-o", str(out_png)]) == 0
-    assert "background: the input's frames" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"--reference: {tmp_path / 'ball.png'} is the box {x},{y},{w},{h} of frame 0, pixel for pixel" in printed
+    assert "background: the ring around it in frame 0" in printed
+    np.testing.assert_allclose(load_sequence(out_png).heatmaps, heat, atol=1e-6)
+    # An image that is not the frames' pixels (here one bit of one pixel changed: a lossy copy) is taken by itself,
+    # its background the input's frames; its maps peak at the ball too.
+    changed = seq.images[0, y:y + h, x:x + w].copy()
+    changed[0, 0, 0] ^= 1
+    Image.fromarray(changed).save(tmp_path / "ball2.png")
+    assert main(["colour", str(path), "--reference", str(tmp_path / "ball2.png"), "-o", str(out_png),
+                 "--force"]) == 0
+    printed = capsys.readouterr().out
+    assert "background: the input's frames" in printed and "pixel for pixel" not in printed
     heat_png = load_sequence(out_png).heatmaps
     assert np.median(np.where(near, heat_png, 0).max(axis=(1, 2))) > 0.8
 
