@@ -300,9 +300,11 @@ def sequence_settings(seq, label: str, methods, options, settings: dict, given, 
         ``(options, settings)`` with the sequence's settings applied.
 
     Raises:
-        ValueError: ``LABEL: settings: ...`` where a value does not parse.
+        ValueError: ``LABEL: settings: ...`` where a value does not parse or lies outside its range.
     """
+    from heatpf_jax import params as P
     from heatpf_jax.presets import FilterOptions, build
+    from heatpf_jax.rollout import validate_params
 
     carried = seq.settings or {}
     if not carried:
@@ -325,6 +327,9 @@ def sequence_settings(seq, label: str, methods, options, settings: dict, given, 
                 continue
         try:
             new_options, new = parse_settings([item], methods, options)
+            for method in methods:  # ranges too, before any work
+                model, params = build(method, new_options)
+                validate_params(P.set_by_name(params, model.properties(), new, skip_unknown=True), model)
         except ValueError as err:
             raise ValueError(f"{label}: settings: {err}") from None
         if name in FilterOptions._fields and all(

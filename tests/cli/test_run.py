@@ -149,3 +149,11 @@ def test_the_sequences_settings_apply_beneath_set(tmp_path, seq_file, capsys):
     np.testing.assert_allclose(mine, pixels, atol=1e-6)
     assert main(["run", str(advised), "-o", str(tmp_path / "k.csv"), "--method", "kalman"]) == 0
     assert "its source=pixels not used by method kalman" in capsys.readouterr().out
+    # A setting the method cannot take is one line naming the file, before any work; nothing is written.
+    for settings, message in (({"threshold": 3.0}, "settings: source.threshold: must be in [0, 1], got 3.0"),
+                              ({"source": "sky"}, "settings: source: must be one of")):
+        bad = tmp_path / "bad.npz"
+        hp.save_sequence(bad, seq._replace(settings=settings))
+        assert main(["run", str(bad), "-o", str(tmp_path / "never.csv"), *SMALL_ARGS]) == 2
+        assert f"{bad}: {message}" in one_error_line(capsys)
+        assert not (tmp_path / "never.csv").exists()
