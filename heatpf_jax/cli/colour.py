@@ -33,6 +33,7 @@ from heatpf_jax.io.files import check_input, check_output
 __all__ = ["add_parser", "cmd_colour", "colour_sequence", "read_reference_image"]
 
 
+_WINDOW_SCALE = 0.8  # colour.reference.SCALED_PARAMS.window_scale (tests/cli/test_colour.py checks they agree)
 _LOW_SCORE = 0.2  # below this, a warning: grass-only boxes scored 0.11-0.25, balls 0.26-0.66 (colour_user_box.py)
 
 
@@ -271,8 +272,8 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
     p.add_argument("--force", action="store_true", help="replace an existing --output")
     p.add_argument("--theta", type=float, default=0.35, help="eq. 3's lower limit, a share of the reference's own "
                    "score (default 0.35)")
-    p.add_argument("--window-scale", type=float, default=0.9, help="object window half-size over the expected "
-                   "ball radius in pixels (default 0.9)")
+    p.add_argument("--window-scale", type=float, default=_WINDOW_SCALE, help="object window half-size over the "
+                   f"expected ball radius in pixels (default {_WINDOW_SCALE}, the library's SCALED_PARAMS)")
     p.add_argument("--window-waist", type=float, default=1.0, help="the object window's arm width over its length, "
                    "in [0, 1] (default 1: a square; 0.618 with --window-scale 0.851: the largest cross of two "
                    "rectangles inside a round ball)")

@@ -175,3 +175,12 @@ def test_a_sequence_without_images_is_refused(tmp_path, rgb_file, capsys):
     save_sequence(plain, seq._replace(images=None))
     assert main(["colour", str(plain), "--box", "1,1,4,4", "--frame", "0", "-o", str(tmp_path / "o.npz")]) == 2
     assert _error(capsys).endswith("images: missing; heatpf colour needs RGB frames (key images, uint8 [T, H, W, 3])")
+
+
+def test_the_commands_defaults_are_the_librarys():
+    """``heatpf colour``'s window and theta are those of ``SCALED_PARAMS``, with which the benchmarks measure."""
+    from heatpf_jax.cli.parser import _build_parser
+
+    args = _build_parser().parse_args(["colour", "in.npz", "--box", "1,1,4,4", "--frame", "0", "-o", "o.npz"])
+    assert args.window_scale == SCALED_PARAMS.window_scale and args.theta == SCALED_PARAMS.theta
+    assert args.window_waist == SCALED_PARAMS.window_waist
