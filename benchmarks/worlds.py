@@ -30,6 +30,7 @@ import numpy as np
 from heatpf_jax.cli.settings import parse_seeds
 from heatpf_jax.evaluate import ScenarioResult, Variant, evaluate_sequences
 from heatpf_jax.presets import FilterOptions
+from heatpf_jax.sim.replay import IN_AIR_HEIGHT
 
 METHODS = ("heatmap", "paper", "extended", "kalman", "conventional", "bitbots2018")
 
@@ -55,7 +56,8 @@ def family_worlds(seeds, steps, members):
 
     for member in members or FAMILY:
         runs = [simulate_family_with_info(member, s, num_steps=steps) for s in seeds]
-        yield f"family/{member}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
+        yield (f"family/{member}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs]),
+               np.stack([r[1].get("ball_height", np.zeros(r[0].num_steps)) for r in runs]))
 
 
 def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), development=False):
@@ -74,7 +76,8 @@ def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), developm
         for heights in heights_kinds:
             runs = [replay_world(p, first + i, robot=robot, heights=heights, num_steps=steps, render=draw)
                     for i, p in enumerate(pieces)]
-            yield f"replay/{robot}/{heights}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs])
+            yield (f"replay/{robot}/{heights}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs]),
+                   np.stack([r[1]["ball_height"] for r in runs]))
 
 
 def air_masks(in_air: np.ndarray, burn_in: int, settle: int = 5) -> dict[str, np.ndarray]:
@@ -134,6 +137,9 @@ def main(argv=None) -> int:
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--split-air", action="store_true",
                         help="also each method's mean error on ground steps / in-air steps / 0.5 s after landings")
+    parser.add_argument("--split-height", action="store_true",
+                        help="also each method's mean error by the ball's bottom height over the ground: 0, "
+                        "(0, 0.02], (0.02, 0.05], (0.05, 0.1] m (all counted as ground steps) and above 0.1 m")
     args = parser.parse_args(argv)
     seeds = list(parse_seeds(args.seeds, 3))
     methods = args.methods.split(",")
@@ -148,7 +154,7 @@ def main(argv=None) -> int:
     header = f"{'world':<28}" + "".join(f"{m:>24}" for m in methods)
     print(header)
     ratios = {}
-    for name, seqs, in_air in worlds:
+    for name, seqs, in_air, heights in worlds:
         t0 = time.perf_counter()
         result = evaluate(name, seqs, methods)
         stats = {m.variant.name: m.stats(result.burn_in) for m in result.methods}
@@ -168,6 +174,16 @@ def main(argv=None) -> int:
                 cells.append("/".join(f"{e:.3f}" for e in means))
             print(f"{'  ground/air/landed':<28}" + "".join(f"{c:>24}" for c in cells) + f"   [steps {counts}]",
                   flush=True)
+        if args.split_height:
+            bins = [(-np.inf, 0.0), (0.0, 0.02), (0.02, 0.05), (0.05, IN_AIR_HEIGHT), (IN_AIR_HEIGHT, np.inf)]
+            after = np.zeros_like(heights, bool)
+            after[:, result.burn_in:] = True
+            masks = [after & (heights > lo) & (heights <= hi) for lo, hi in bins]
+            shares = "/".join(f"{v.sum() / after.sum():.2f}" for v in masks)
+            cells = ["/".join(f"{r.errors[v].mean():.3f}" if v.any() else "nan" for v in masks)
+                     for r in result.methods]
+            print(f"{'  by height 0/.02/.05/.1/up':<28}" + "".join(f"{c:>32}" for c in cells)
+                  + f"   [shares {shares}]", flush=True)
         for m in methods:
             if len(methods) < 2:
                 break  # one method: no ratio to another
