@@ -344,7 +344,7 @@ def sequence_settings(seq, label: str, methods, options, settings: dict, given, 
     if applied:
         parts.append(f"{', '.join(applied)} from the sequence's settings (--set NAME=VALUE overrides)")
     if overridden:
-        why = "the --params file gives the settings" if pinned else "--set gives them"
+        why = "the --params file gives the settings" if pinned else "the command line sets them"
         parts.append(f"its {', '.join(overridden)} not applied ({why})")
     if unused:
         parts.append(f"its {', '.join(unused)} not used by {which}")

@@ -144,7 +144,7 @@ def test_the_sequences_settings_apply_beneath_set(tmp_path, seq_file, capsys):
     assert not np.allclose(applied, default, atol=1e-3)  # a threshold of 0.6 keeps fewer pixels
     mine, printed = estimates([str(advised), "--set", "threshold=0.3"])
     assert f"{advised}: source=pixels from the sequence's settings" in printed
-    assert "its threshold=0.6 not applied (--set gives them)" in printed
+    assert "its threshold=0.6 not applied (the command line sets them)" in printed
     pixels, _ = estimates([str(path), "--set", "source=pixels"])
     np.testing.assert_allclose(mine, pixels, atol=1e-6)
     assert main(["run", str(advised), "-o", str(tmp_path / "k.csv"), "--method", "kalman"]) == 0

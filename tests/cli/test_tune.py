@@ -346,6 +346,12 @@ def test_sweep_and_tune_follow_the_files_settings(tuned, tmp_path, monkeypatch, 
               *SMALL_ARGS])
     printed = capsys.readouterr().out
     assert f"{a}: source=pixels from the sequence's settings" in printed
-    assert "its threshold=0.5 not applied (--set gives them)" in printed
+    assert "its threshold=0.5 not applied (the command line sets them)" in printed
     assert isinstance(seen["model"].source, hp.sources.PixelSource)
     assert [float(p.source.threshold) for p in seen["sets"]] == pytest.approx([0.4, 0.4])
+    # A --params file holds every option and parameter: the file's settings give way to it.
+    with pytest.raises(_Reached):
+        main(["sweep", str(a), "--params", str(tuned["out"]), "--grid", "k=1,2", "-o", str(tmp_path / "p.csv")])
+    assert (f"{a}: its source=pixels, threshold=0.5 not applied (the --params file gives the settings)"
+            in capsys.readouterr().out)
+    assert isinstance(seen["model"].source, hp.sources.LoftedSource)
