@@ -142,6 +142,12 @@ def test_reference_images_png_and_npy(tmp_path, rgb_file):
         assert main(["colour", str(path), "--reference", str(tmp_path / ref), "-o", str(out)]) == 0
         outs.append(load_sequence(out).heatmaps)
     np.testing.assert_array_equal(outs[0], outs[1])  # PNG is lossless
+    # Cut out of frame 0, the image is found there: a --box inside it is that box of the frame.
+    out = tmp_path / "inside.npz"
+    assert main(["colour", str(path), "--reference", str(tmp_path / "ref.png"), "--box", "1,2,4,5", "-o",
+                 str(out)]) == 0
+    want, _ = colour_sequence(seq, box=(19, 10, 4, 5), frame=0)
+    np.testing.assert_allclose(load_sequence(out).heatmaps, want.heatmaps, atol=1e-6)
 
 
 @pytest.mark.parametrize("args, message", [
