@@ -229,9 +229,9 @@ def _plain(seq, t0: int, box):
 
 
 def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
-    """``heatpf colour --reference``: an image found in the frames pixel for pixel (a PNG cut out of one) is taken
-    as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`); with ``jpeg`` the image
-    goes through a JPEG file first (quality 90, Pillow), which is not found, and is taken by itself."""
+    """``heatpf colour --reference``: an image found in the frames (a PNG cut out of one, or a JPEG of it) is taken
+    as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`), else by itself; with
+    ``jpeg`` the image goes through a JPEG file first (quality 90, Pillow)."""
     from heatpf_jax.cli.colour import colour_sequence
     from heatpf_jax.colour.crop import find_crop
 
@@ -256,7 +256,8 @@ def reference_frames(seq, info) -> dict[str, int]:
     different from the first's (``light``: the largest change of the channel means' ratios), each with the
     ball visible and at least 10 px inside the image. In ``main``'s ``--frames``, ``NAME-image`` is that frame's
     box saved as an image and given as ``--reference`` (found in the frames, pixel for pixel: the box's reference),
-    ``NAME-jpeg`` the same saved as a JPEG (not found: its background is the input's frames), ``NAME-plain``
+    ``NAME-jpeg`` the same saved as a JPEG (found within the tolerance of :func:`heatpf_jax.colour.crop.find_crop`,
+    or taken by itself with the input's frames as its background), ``NAME-plain``
     the previous release's reference from it (:func:`_plain`)."""
     h, w = seq.heatmaps.shape[1:]
     uv = np.array([project_centre(np.array([*g, float(seq.ball_radius)]), seq.intrinsics, c)[:2]

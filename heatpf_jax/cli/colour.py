@@ -7,7 +7,7 @@
 
 The reference comes from a box in frame ``N`` of the input's own ``images``, or from an image of the object
 (PNG/JPEG through Pillow, ``pip install 'heatpf-jax[rgb]'``, or a ``.npy`` ``uint8 [h, w, 3]``), in ``--box`` if
-given; an image that is, pixel for pixel, a box of one of the input's frames (a PNG cut out of a frame) is taken as
+given; an image that is a box of one of the input's frames (a PNG cut out of a frame, or a JPEG of it) is taken as
 that box in that frame (:func:`heatpf_jax.colour.crop.find_crop`), with a printed line. The box may hold background
 (a box around a ball holds grass in its corners, more when drawn loosely or off-centre):
 :func:`heatpf_jax.colour.reference.box_reference` finds the object in it and weights down the colours of the
@@ -217,8 +217,9 @@ def cmd_colour(args: argparse.Namespace) -> int:
         h, w = reference_image.shape[:2]
         x, y, bw, bh = (0, 0, w, h) if box is None else box
         box, frame, reference_image = (crop.x + x, crop.y + y, bw, bh), crop.frame, None
-        print(f"--reference: {args.reference} is the box {crop.x},{crop.y},{w},{h} of frame {crop.frame}, pixel for "
-              "pixel: the reference is taken there, as with --box and --frame")
+        how = "pixel for pixel" if crop.rms == 0.0 else f"to within {crop.rms:.1f} grey levels RMS (a lossy copy)"
+        print(f"--reference: {args.reference} is the box {crop.x},{crop.y},{w},{h} of frame {crop.frame}, {how}: the "
+              "reference is taken there, as with --box and --frame")
     timings: dict[str, float] = {}
     colour, ref = colour_sequence(seq, box=box, frame=frame, reference_image=reference_image,
                                   background=args.background, options=options, params=params, timings=timings)
@@ -260,7 +261,8 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
     )
     p.add_argument("input", help="sequence file (.npz, version 1) with images (uint8 [T, H, W, 3])")
     p.add_argument("--reference", metavar="REF.png", help="image of the object (PNG/JPEG, or .npy uint8 [h, w, 3]); "
-                   "one cut out of a frame of the input, pixel for pixel, is taken as that box in that frame")
+                   "one cut out of a frame of the input (pixel for pixel, or a JPEG of it) is taken as that box in "
+                   "that frame")
     p.add_argument("--box", metavar="x,y,w,h", help="the object's box, pixels: in --reference, or in --frame")
     p.add_argument("--frame", type=int, help="take the reference from --box in this frame of the input")
     p.add_argument("--background", default="auto", choices=("auto", "ring", "frames", "none"),

@@ -1,6 +1,8 @@
-"""Where a reference image was cut from: every place checked against a brute-force search over all offsets."""
+"""Where a reference image was cut from: every place and difference checked against a brute-force search over all
+offsets."""
 
 import numpy as np
+import pytest
 
 from heatpf_jax.colour.crop import Crop, find_crop
 
@@ -21,12 +23,44 @@ def test_a_cut_out_box_is_found_where_it_was_cut():
         assert find_crop(images, image) == Crop(frame=first[0], x=first[1], y=first[2])
 
 
+def _rms_everywhere(images: np.ndarray, image: np.ndarray) -> np.ndarray:
+    """``[T, H - h + 1, W - w + 1]`` the RMS difference at every offset, by brute force."""
+    h, w = image.shape[:2]
+    t_, height, width = images.shape[:3]
+    out = np.empty((t_, height - h + 1, width - w + 1))
+    for t in range(t_):
+        for y in range(height - h + 1):
+            for x in range(width - w + 1):
+                d = images[t, y:y + h, x:x + w].astype(float) - image
+                out[t, y, x] = np.sqrt(np.mean(d**2))
+    return out
+
+
+def test_a_lossy_copy_is_found_at_its_nearest_place():
+    """A copy with noise (as a JPEG's) is found where the brute-force RMS difference is smallest, with that RMS; a
+    copy changed beyond ``tolerance``, or ``tolerance=0``, finds nothing."""
+    rng = np.random.default_rng(5)
+    images = rng.integers(0, 256, (4, 24, 30, 3), dtype=np.uint8)
+    for t, x, y, w, h in ((2, 7, 5, 8, 6), (0, 22, 18, 8, 6), (3, 0, 0, 5, 9)):
+        noisy = np.clip(images[t, y:y + h, x:x + w] + rng.normal(0, 8, (h, w, 3)), 0, 255).astype(np.uint8)
+        rms = _rms_everywhere(images, noisy)
+        want = np.unravel_index(np.argmin(rms), rms.shape)
+        assert tuple(want) == (t, y, x)
+        got = find_crop(images, noisy)
+        assert got[:3] == (t, x, y) and got.rms == pytest.approx(rms[want], rel=1e-6)
+        assert find_crop(images, noisy, tolerance=0.0) is None
+        assert find_crop(images, noisy, tolerance=0.5 * rms[want]) is None
+
+
 def test_what_is_not_cut_out_or_is_ambiguous_is_not_found():
     rng = np.random.default_rng(4)
     images = rng.integers(0, 256, (3, 20, 20, 3), dtype=np.uint8)
     image = images[1, 5:11, 4:12].copy()
     image[3, 2, 1] ^= 1  # one bit of one pixel changed (a lossy copy): not the frame's pixels
-    assert _brute_force(images, image) == [] and find_crop(images, image) is None
+    assert _brute_force(images, image) == [] and find_crop(images, image, tolerance=0.0) is None
+    assert find_crop(images, image)[:3] == (1, 4, 5)  # but within the tolerance
+    other = rng.integers(0, 256, (6, 8, 3), dtype=np.uint8)  # not in the frames: random pixels are 100+ levels off
+    assert _rms_everywhere(images, other).min() > 20.0 and find_crop(images, other) is None
     assert find_crop(images, rng.integers(0, 256, (21, 5, 3), dtype=np.uint8)) is None  # taller than a frame
     flat = np.zeros((2, 12, 12, 3), np.uint8)
     flat[1, 2:6, 2:6] = 200  # a uniform patch: in frame 1 at 9 places, in frame 0 nowhere
