@@ -74,10 +74,21 @@ def replay_worlds(count, steps, render, heights_kinds=("flat", "kept"), developm
     draw = _disc_render if render == "disc" else None
     for robot in ("static", "walking"):
         for heights in heights_kinds:
-            runs = [replay_world(p, first + i, robot=robot, heights=heights, num_steps=steps, render=draw)
-                    for i, p in enumerate(pieces)]
+            runs = [replay_world(p, first + i, robot=robot, heights="kept" if heights == "oracle" else heights,
+                                 num_steps=steps, render=draw) for i, p in enumerate(pieces)]
+            if heights == "oracle":
+                runs = [(_knowing_the_height(seq, info["ball_height"]), info) for seq, info in runs]
             yield (f"replay/{robot}/{heights}", [r[0] for r in runs], np.stack([r[1]["in_air"] for r in runs]),
                    np.stack([r[1]["ball_height"] for r in runs]))
+
+
+def _knowing_the_height(seq, height):
+    """The replay with its heights kept as a filter that knew the ball's height would see it: every camera pose
+    lowered by the ball's height, so that the plane ``z = R`` of the projection meets the ball's centre wherever it
+    flies (the heat maps are the same; only the poses move). A bound on what a height in the state could give."""
+    cam = np.array(seq.cam_to_base, np.float64)
+    cam[:, 2, 3] -= np.asarray(height, np.float64)
+    return seq._replace(cam_to_base=cam)
 
 
 def air_masks(in_air: np.ndarray, burn_in: int, settle: int = 5) -> dict[str, np.ndarray]:
@@ -133,7 +144,8 @@ def main(argv=None) -> int:
     parser.add_argument("--per-seed", action="store_true",
                         help="also each method's mean error per seed or piece (the seed-to-seed spread)")
     parser.add_argument("--render", choices=("gaussian", "disc"), default="gaussian", help="replays' blobs")
-    parser.add_argument("--heights", default="flat,kept", help="replays' ball heights: flat, kept or both (default)")
+    parser.add_argument("--heights", default="flat,kept", help="replays' ball heights: flat, kept or both (default); "
+                        "oracle: kept, with the cameras lowered by the ball's height (a filter that knew it)")
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--split-air", action="store_true",
                         help="also each method's mean error on ground steps / in-air steps / 0.5 s after landings")
