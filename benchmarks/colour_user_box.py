@@ -233,7 +233,7 @@ def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
     as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`), else by itself; with
     ``jpeg`` the image goes through a JPEG file first (quality 90, Pillow)."""
     from heatpf_jax.cli.colour import colour_sequence
-    from heatpf_jax.colour.crop import find_crop
+    from heatpf_jax.colour.crop import find_crop, frame_box
 
     if jpeg:
         import io
@@ -247,7 +247,7 @@ def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
     if crop is None:
         return colour_sequence(seq, reference_image=image, params=params)
     h, w = image.shape[:2]
-    return colour_sequence(seq, box=(crop.x, crop.y, w, h), frame=crop.frame, params=params)
+    return colour_sequence(seq, box=frame_box(crop, (0, 0, w, h)), frame=crop.frame, params=params)
 
 
 def reference_frames(seq, info) -> dict[str, int]:

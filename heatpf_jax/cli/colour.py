@@ -176,7 +176,7 @@ def _spread(num: int, count: int = 8) -> np.ndarray:
 
 
 def cmd_colour(args: argparse.Namespace) -> int:
-    from heatpf_jax.colour.crop import find_crop
+    from heatpf_jax.colour.crop import find_crop, frame_box
     from heatpf_jax.colour.likelihood import MAP_SETTINGS
     from heatpf_jax.colour.reference import SCALED_PARAMS, ReferenceOptions
     from heatpf_jax.io.sequence import load_sequence, save_sequence
@@ -215,8 +215,7 @@ def cmd_colour(args: argparse.Namespace) -> int:
     crop = None if reference_image is None else find_crop(seq.images, reference_image)
     if crop is not None:  # the image is a box of one of the frames: the reference is that box's, in its frame
         h, w = reference_image.shape[:2]
-        x, y, bw, bh = (0, 0, w, h) if box is None else box
-        box, frame, reference_image = (crop.x + x, crop.y + y, bw, bh), crop.frame, None
+        box, frame, reference_image = frame_box(crop, (0, 0, w, h) if box is None else box), crop.frame, None
         how = "pixel for pixel" if crop.rms == 0.0 else f"to within {crop.rms:.1f} grey levels RMS (a lossy copy)"
         print(f"--reference: {args.reference} is the box {crop.x},{crop.y},{w},{h} of frame {crop.frame}, {how}: the "
               "reference is taken there, as with --box and --frame")

@@ -1,7 +1,7 @@
 """Colour heat maps from RGB frames (Olufs 2): colour space, reference histogram, likelihood maps.
 """
 
-from heatpf_jax.colour.crop import Crop, find_crop
+from heatpf_jax.colour.crop import Crop, find_crop, frame_box
 from heatpf_jax.colour.likelihood import (
     MAP_SETTINGS,
     ColourParams,
@@ -71,6 +71,7 @@ __all__ = [
     "exact_top_bins",
     "expected_radius_px",
     "find_crop",
+    "frame_box",
     "frames_histogram",
     "heaviest_bins",
     "histogram",

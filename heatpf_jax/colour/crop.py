@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Crop", "find_crop"]
+__all__ = ["Crop", "find_crop", "frame_box"]
 
 
 class Crop(NamedTuple):
@@ -39,6 +39,12 @@ class Crop(NamedTuple):
     x: int
     y: int
     rms: float = 0.0
+
+
+def frame_box(crop: Crop, box: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """``box`` ``(x, y, width, height)`` of the reference image as the same box in the frame ``crop`` found it in."""
+    x, y, w, h = box
+    return crop.x + x, crop.y + y, w, h
 
 
 def find_crop(images: np.ndarray, image: np.ndarray, tolerance: float = 20.0) -> Crop | None:

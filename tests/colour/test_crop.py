@@ -4,7 +4,7 @@ offsets."""
 import numpy as np
 import pytest
 
-from heatpf_jax.colour.crop import Crop, find_crop
+from heatpf_jax.colour.crop import Crop, find_crop, frame_box
 
 
 def _brute_force(images: np.ndarray, image: np.ndarray) -> list[tuple[int, int, int]]:
@@ -67,3 +67,11 @@ def test_what_is_not_cut_out_or_is_ambiguous_is_not_found():
     assert len(_brute_force(flat, np.full((2, 2, 3), 200, np.uint8))) == 9
     assert find_crop(flat, np.full((2, 2, 3), 200, np.uint8)) is None
     assert find_crop(flat, flat[1, 1:7, 1:7]) == Crop(frame=1, x=1, y=1)  # with its border: one place
+
+
+def test_a_box_of_the_image_is_the_same_box_of_its_frame():
+    rng = np.random.default_rng(6)
+    images = rng.integers(0, 256, (2, 20, 24, 3), dtype=np.uint8)
+    crop = find_crop(images, images[1, 6:16, 9:21])
+    x, y, w, h = frame_box(crop, (2, 3, 4, 5))
+    np.testing.assert_array_equal(images[crop.frame, y:y + h, x:x + w], images[1, 6:16, 9:21][3:8, 2:6])
