@@ -47,7 +47,22 @@ ratio): two ground blobs side by side that the window took as one (a ball beside
 along the ray), or a blob blurred by motion, are stretched along one axis and keep a ground ball's minor std. And a
 ball does not hover (:mod:`heatpf_jax.sources.hover`): a blob read as flying at the place, moved with the robot,
 where one was read so 0.25-1 s before lies on the ground (a thing larger than the ball) and is measured where it
-projects. Every function here is pure and jittable.
+projects.
+
+Below the hard test the size still says something: a ball 0.05-0.1 m up (the bounces of a landing) has a blob 5-20 %
+larger than a ground ball's there, within the ground balls' scatter, and its projection on the plane overshoots by that
+share of its range (0.5 m at 3-4 m). With calibration (and ``launch_rate > 0``) the source carries the probability
+that the ball is in the air (``LoftedState.flight``, a two-state chain: launched at ``launch_rate``, landing after
+``flight_time`` on average) and moves a blob that is more likely in the air than not, under that prior, along its ray
+to the posterior mean of its size ratio (:mod:`heatpf_jax.sources.air_prior`: ground balls' log sizes scatter as a
+Student t of the learned robust spread, :func:`~heatpf_jax.sources.blob_scale.ground_spread`, balls in the air as an
+exponential of mean ``air_scale``). A flight starts only where a frame shows it beyond the hard test (a ground ball's
+blob that reads a little large, once or frame after frame by a bias of its own, starts none), so a ground ball far
+from any flight is measured as before, and a ball landing is followed down. A small blob's size is uncertain by its
+pixel grid, ``1 / (12 s^2)`` in log units beyond the ground balls' spread, in both tests; and a blob's peak is taken
+between pixel centres (:func:`subpixel_peaks`), where the largest pixel of a blob of 1-1.5 px std lies 4-8 % below
+it and the size would read 2-4 % too large, rising and falling as the ball crosses the pixel grid. Every function
+here is pure and jittable.
 """
 
 from __future__ import annotations
@@ -65,11 +80,13 @@ from heatpf_jax.camera import ground_jacobian, project_pixel, project_points
 from heatpf_jax.measurements import Measurements, downscale_heatmap
 from heatpf_jax.params import Param, interval, positive, unit_interval
 from heatpf_jax.pieces import StepInputs
+from heatpf_jax.sources.air_prior import air_log_ratio, air_probability, predict_flight
 from heatpf_jax.sources.blob_scale import (
     BlobScaleState,
     blob_scale_estimate,
     blob_scale_spread,
     frame_log_ratio,
+    ground_spread,
     init_blob_scale,
     update_blob_scale,
 )
@@ -93,8 +110,11 @@ __all__ = [
     "blob_elongation",
     "blob_sizes",
     "bright_pixels",
+    "subpixel_peaks",
 ]
 
+_MIN_SPREAD = 0.02  # the smallest log-size spread of ground balls the posterior placement assumes
+_CORE = 0.3  # subpixel_peaks refines a pixel whose neighbours are at least this share of it
 _MIN_STD_PX = 0.7  # a blob is never thinner than this (pixel quantisation)
 PEAK_RADIUS_PX = 3  # a blob's peak is the largest activation this close to its centroid
 
@@ -137,6 +157,16 @@ class LoftedParams(NamedTuple):
             (:mod:`heatpf_jax.sources.hover`).
         hover_min_age: seconds; a ball in flight has crossed more than ``hover_px`` in this time.
         hover_max_age: seconds; places older than this are forgotten.
+        launch_rate: with calibration, how often a ball on the ground is launched into the air, per second
+            (:func:`~heatpf_jax.sources.air_prior.predict_flight`); 0 turns the flight state and the posterior
+            placement off (a blob is then in the air only beyond the hard test, as before). 0.01: chosen among 0.005,
+            0.01, 0.02 and 0.05 by the worst case over the development replays (16 pieces, static and walking robot,
+            heights kept and flat) and the world family's development seeds 100-102.
+        flight_time: with calibration, a flight's mean duration, seconds (bounces included).
+        air_scale: the mean log size ratio ``log q`` of a ball in the air (the prior's exponential scale,
+            :mod:`heatpf_jax.sources.air_prior`); 0.1 among 0.05, 0.1 and 0.2 on the development replays.
+        false_alarm: the share of ground balls' blobs that the hard test (``min_ratio``, ``calibration_sigmas``)
+            reads as flying: one such frame makes a flight that likely, and a few in a row certain.
     """
 
     threshold: float = 0.3
@@ -154,6 +184,10 @@ class LoftedParams(NamedTuple):
     hover_px: float = 3.0
     hover_min_age: float = 0.25
     hover_max_age: float = 1.0
+    launch_rate: float = 0.01
+    flight_time: float = 1.5
+    air_scale: float = 0.1
+    false_alarm: float = 0.02
 
 
 class LoftedState(NamedTuple):
@@ -168,6 +202,7 @@ class LoftedState(NamedTuple):
 
     scale: BlobScaleState | tuple = ()
     hover: HoverState | tuple = ()
+    flight: Float[Array, ""] | tuple = ()
 
 
 class BlobSizes(NamedTuple):
@@ -204,6 +239,44 @@ def _box_max(x: Float[Array, "h w"], radius: int) -> Float[Array, "h w"]:
     for k in range(1, 2 * r + 1):
         out = jnp.maximum(out, padded[k:k + h])
     return out
+
+
+def subpixel_peaks(heatmap: Float[ArrayLike, "h w"]) -> Float[Array, "h w"]:
+    """Each local maximum's activation refined to the height of the blob's true peak between pixel centres.
+
+    A blob ``p exp(-|u - c|^2 / 2 s^2)`` whose centre ``c`` falls between pixels has its largest pixel below ``p``
+    (by ``exp(-1 / 12 s^2)`` on average, 8 % for a distant ball's blob of 1 px std, up to ``exp(-1 / 4 s^2)``): its
+    size ``sqrt(M / 2 pi (p - t))`` reads too large, by more the smaller and the farther off-centre it is (a ball
+    rolling slowly across the pixel grid reads as rising and falling). The logarithm of a Gaussian is a parabola:
+    through a pixel and its two neighbours along each axis it has its vertex at ``log p`` exactly,
+    ``log h_0 + (a - c)^2 / (8 (2 b - a - c))`` per axis (``a, b, c`` the logarithms of the three activations).
+    Only a pixel larger than its row and column neighbours (the vertex within half a pixel), each of them at least
+    ``_CORE`` (0.3) of it, is refined: a flat (saturated) top or its rim, a speck, or any other pixel keeps its
+    activation.
+
+    Args:
+        heatmap: ``[H, W]`` activations.
+
+    Returns:
+        ``[H, W]`` activations, the local maxima refined (never lowered).
+    """
+    heat = jnp.asarray(heatmap, jnp.float32)
+    log_h = jnp.log(jnp.maximum(heat, 1e-6))
+    padded = jnp.pad(log_h, 1, mode="edge")
+    centre = padded[1:-1, 1:-1]
+
+    def lift(before, after):
+        curvature = 2.0 * centre - before - after
+        # A Gaussian core: both neighbours within a factor _CORE of the pixel (a speck, a saturated plateau's edge
+        # or a blob's rim is no parabola's vertex).
+        ok = (curvature > 1e-6) & (centre > before) & (centre > after) & (jnp.minimum(before, after) >= centre
+                                                                          + math.log(_CORE))
+        return jnp.where(ok, jnp.square(before - after) / (8.0 * jnp.where(ok, curvature, 1.0)), 0.0), ok
+
+    lift_u, ok_u = lift(padded[1:-1, :-2], padded[1:-1, 2:])
+    lift_v, ok_v = lift(padded[:-2, 1:-1], padded[2:, 1:-1])
+    ok = ok_u & ok_v & (heat > 0.0)
+    return jnp.where(ok, heat * jnp.exp(lift_u + lift_v), heat)
 
 
 def blob_sizes(
@@ -252,7 +325,7 @@ def blob_sizes(
     margin = jnp.maximum(jnp.max(heat) - threshold, 1e-3)
     # The blob's peak: the largest activation within PEAK_RADIUS_PX of its centroid (the centroid of a blob split by
     # an occluder lies in the gap; that of a small blob between pixel centres).
-    local_peak = _box_max(heat, PEAK_RADIUS_PX)
+    local_peak = _box_max(subpixel_peaks(heat), PEAK_RADIUS_PX)
 
     def measure(uv, std):
         ground = blob_scale * ball_radius_px(uv, intrinsics, cam_to_base, plane_height)
@@ -459,6 +532,10 @@ class LoftedSource:
             hover_px=Param(low=0.0, trainable=False),
             hover_min_age=Param(low=0.0, trainable=False, allow_inf=True),
             hover_max_age=Param(low=0.0, trainable=False, allow_inf=True),
+            launch_rate=Param(low=0.0, trainable=False),
+            flight_time=positive(trainable=False),
+            air_scale=positive(trainable=False),
+            false_alarm=interval(0.0, 1.0, trainable=False),
         )
 
     def validate(self) -> None:
@@ -482,6 +559,7 @@ class LoftedSource:
         return LoftedState(
             scale=init_blob_scale(self.calibration_frames) if self.calibration_frames > 0 else (),
             hover=init_hover(self.hover_frames, self.hover_blobs) if self.hover_frames > 0 else (),
+            flight=jnp.zeros((), jnp.float32) if self.calibration_frames > 0 else (),
         )
 
     def measure(self, inputs: StepInputs, params: LoftedParams) -> Measurements:
@@ -501,8 +579,13 @@ class LoftedSource:
         self, inputs: StepInputs, params: LoftedParams, state: LoftedState | tuple
     ) -> LoftedState | tuple:
         """The state through a step without a heat map: the remembered places move with the robot and age."""
-        if isinstance(state, LoftedState) and isinstance(state.hover, HoverState):
-            return state._replace(hover=age_hover(state.hover, inputs.odometry, inputs.dt))
+        if not isinstance(state, LoftedState):
+            return state
+        if isinstance(state.hover, HoverState):
+            state = state._replace(hover=age_hover(state.hover, inputs.odometry, inputs.dt))
+        if not isinstance(state.flight, tuple):
+            state = state._replace(flight=predict_flight(state.flight, inputs.dt, params.launch_rate,
+                                                         params.flight_time))
         return state
 
     def _measure(self, inputs: StepInputs, params: LoftedParams, state: LoftedState):
@@ -520,20 +603,32 @@ class LoftedSource:
         if calib is not None:  # this frame's ratio joins the estimate before its blobs are judged
             calib = update_blob_scale(calib, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
             scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
-        min_ratio = params.min_ratio
+        # A small blob's std is measured on a grid of unit pixels, whose variance (1/12 px^2) is of the order of its
+        # own: its log size is uncertain by at least 1 / (12 s^2) beyond the ground balls' spread (0.08 for a distant
+        # ball's blob of 1 px std, 0.02 at 2 px), and its size tells a flight only beyond that.
+        grid = 1.0 / (12.0 * jnp.square(jnp.maximum(blobs.std_px, _MIN_STD_PX)))
+        min_ratio = jnp.broadcast_to(jnp.asarray(params.min_ratio, jnp.float32), grid.shape)
+        soft = jnp.asarray(False)
+        sigma = grid
         if calib is not None:
             spread = blob_scale_spread(calib)
-            min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * spread))
+            min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * jnp.hypot(spread, grid)))
             # What the frames show is no detector's ball (speckle, clutter or large false blobs outnumber it), or its
             # sizes scatter too widely: no blob is placed by its size, every pixel is measured as the paper's.
             credible = (spread <= params.calibration_max_spread) & (scale >= params.min_blob_scale) & (
                 scale <= params.max_blob_scale)
             min_ratio = jnp.where(credible, min_ratio, jnp.inf)
+            ground = ground_spread(calib)  # 0 until enough frames are stored: no posterior placement before
+            sigma = jnp.hypot(jnp.maximum(ground, _MIN_SPREAD), grid)
+            soft = credible & (params.launch_rate > 0.0) & (ground > 0.0)
+        ground_px = blobs.ground_radius_px
+        below = ground_px > 0.0
         # A sphere's blob is round: its size is its minor std. Two blobs side by side that the window took as one (a
         # ball beside a penalty mark), or a blurred blob, are stretched along one axis: by their mass they read as a
         # ball too large for the ground, by their minor std as what they are. The std by mass is at least the minor
         # one, so only a blob that its mass reads as flying needs the second moments (a frame without one skips them).
-        flying = passes & (blobs.std_px / scale > min_ratio * blobs.ground_radius_px)
+        flying = passes & (blobs.std_px / scale > min_ratio * ground_px)
+        flying = flying | (soft & passes & below & (blobs.std_px / scale > jnp.exp(sigma) * ground_px))
         span = jnp.clip(2.5 * jnp.maximum(blobs.std_px, _MIN_STD_PX), 1.0, params.max_half_px)
         elongation = lax.cond(
             jnp.any(flying),
@@ -541,7 +636,37 @@ class LoftedSource:
             lambda: jnp.ones_like(blobs.std_px),
         )
         apparent = blobs.std_px / jnp.sqrt(elongation) / scale
-        in_air = flying & (apparent > min_ratio * blobs.ground_radius_px)  # above the horizon: ground radius 0
+        sized_up = flying & (apparent > min_ratio * ground_px)  # above the horizon: ground radius 0
+        # Below the hard threshold, the posterior mean of the ball's size ratio (sources.air_prior): a low ball is not
+        # left on the plane, a ground ball's size noise moves it little. How likely the ball flies now is carried from
+        # frame to frame (LoftedState.flight).
+        measured = jnp.log(jnp.maximum(apparent, 1e-6)) - jnp.log(jnp.where(below, ground_px, 1.0))
+        flight = state.flight
+        share = jnp.asarray(0.5, jnp.float32)
+        if not isinstance(flight, tuple):
+            flight = predict_flight(flight, inputs.dt, params.launch_rate, params.flight_time)
+            share = jnp.clip(flight, 1e-6, 1.0 - 1e-6)
+        posterior = air_log_ratio(jnp.where(below, measured, 0.0), sigma, share, params.air_scale)
+        if not isinstance(flight, tuple):
+            # The ball is the frame's strongest pixel's blob. A flight starts where a frame shows it clearly: the
+            # ball's blob beyond the hard threshold (where the ground noise's polynomial tail outgrows the prior's
+            # exponential one) or above the horizon. A blob within the size test's reach keeps a flight going or ends
+            # it, but starts none: a ground ball whose blob reads a little large frame after frame (split by an
+            # occluder, or distant, a few pixels wide) does not add up to a flight.
+            ball = jnp.argmax(jnp.where(passes, weight, -1.0))
+            p_ball = air_probability(jnp.where(below[ball], measured[ball], 0.0), sigma[ball], share,
+                                     params.air_scale)
+            # A blob beyond the test is a ball in the air, or a ground ball's blob that reads too large (a share
+            # ``false_alarm`` of them): one such frame makes a flight likely, a few in a row certain.
+            odds = share / (1.0 - share) / jnp.maximum(params.false_alarm, 1e-6)
+            p_ball = jnp.where(below[ball] & ~sized_up[ball], jnp.minimum(p_ball, share), odds / (1.0 + odds))
+            flight = jnp.where(jnp.any(passes) & soft, p_ball, flight)
+        # Moved only where the ball is more likely in the air than not: near a flight (its landing and bounces), not a
+        # ground ball whose blob reads large in a frame or, frame after frame, by a bias of its own.
+        p_air = air_probability(jnp.where(below, measured, 0.0), sigma, share, params.air_scale)
+        lifted = soft & passes & below & ~sized_up & (p_air > 0.5)
+        apparent = jnp.where(lifted, ground_px * jnp.exp(posterior), apparent)
+        in_air = sized_up | lifted
         if hover is not None:
             # A blob read as flying where one was read so a while ago (moved with the robot) hovers: it lies on the
             # ground. Its place is remembered all the same, so that a thing on the ground stays known as one.
@@ -554,7 +679,7 @@ class LoftedSource:
             hover = remember_hover(hover, place_points(places, intrinsics, pose, radius), has)
             in_air = in_air & ~((label >= 0) & still[jnp.clip(label, 0, None)])
         state = LoftedState(scale=calib if calib is not None else state.scale,
-                            hover=hover if hover is not None else state.hover)
+                            hover=hover if hover is not None else state.hover, flight=flight)
         refused = apparent > params.max_ratio * blobs.ground_radius_px
         centres, sized = air_points(blobs.uv, apparent, intrinsics, pose, radius)
         air_xy = centres[:, :2]

@@ -11,6 +11,7 @@ from heatpf_jax.sources.blob_scale import (
     blob_scale_estimate,
     blob_scale_spread,
     frame_log_ratio,
+    ground_spread,
     init_blob_scale,
     update_blob_scale,
 )
@@ -141,3 +142,66 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     state = source.init_state()._replace(scale=scale)
     placed, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
+
+
+def _ground_spread_reference(values: np.ndarray) -> float:
+    """The shorth's midpoint by brute force over every window of half the values, then 1.4826 times the lower median
+    of the distances below it."""
+    v = np.sort(np.float64(values))
+    half = max(len(v) // 2, 1)
+    starts = np.arange(len(v) - half)
+    i = starts[np.argmin(v[starts + half] - v[starts])]
+    centre = 0.5 * (v[i] + v[i + half])
+    below = centre - v[v < centre]
+    return 1.4826 * float(np.quantile(below, 0.5, method="lower"))
+
+
+def test_ground_spread_ignores_balls_in_the_air():
+    """Ground balls' sizes N(log 0.6, 0.03^2) and a third of the frames in flights (only ever larger): the spread
+    below the shorth's midpoint is the ground balls', the median absolute deviation about the median is not."""
+    rng = np.random.default_rng(8)
+    ground = np.log(0.6) + 0.03 * rng.standard_normal(170)
+    air = np.log(0.6) + rng.exponential(0.4, 86)
+    values = rng.permutation(np.concatenate([ground, air]))
+    state = init_blob_scale(256)
+    for value in values:
+        state = update_blob_scale(state, value, True)
+    spread = float(ground_spread(state))
+    assert spread == pytest.approx(_ground_spread_reference(np.float32(values)), rel=1e-4)
+    assert spread == pytest.approx(0.03, rel=0.2)
+    assert float(blob_scale_spread(state)) > 1.3 * spread
+    few = init_blob_scale(16)
+    for value in values[:7]:
+        few = update_blob_scale(few, value, True)
+    assert float(ground_spread(few)) == 0.0  # fewer than 8 values: no spread yet
+
+
+def test_a_low_ball_after_a_flight_is_placed_by_its_size():
+    """A ball 0.06 m up (its blob 1.13 times a ground ball's there, below ``min_ratio``) just after a flight: the
+    flight state says the ball is in the air, and its size places it far nearer the truth than the plane, which puts
+    it 13 % of its range too far. Ground balls long after any flight keep the paper's measurements."""
+    rng = np.random.default_rng(4)
+    source = LoftedSource(max_measurements=256, calibration_frames=32)
+    params = LoftedParams()
+    measure = jax.jit(source.measure_state)
+    pose = _pose(0.6, 25.0, yaw=0.1)
+    state = source.init_state()
+    for _ in range(20):  # ground balls: the detector's scale and spread are learned, the flight state stays low
+        spot = np.array([rng.uniform(1.5, 3.5), rng.uniform(-0.8, 0.8)])
+        m, state = measure(_inputs(_sphere_heatmap(rng, np.array([*spot, RADIUS]), pose), pose), params, state)
+    assert float(state.flight) < 0.05
+    ground = np.array([2.4, 0.2])
+    inputs = _inputs(_sphere_heatmap(rng, np.array([*ground, RADIUS]), pose), pose)
+    m, _ = measure(inputs, params, state)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    np.testing.assert_allclose(np.asarray(m.xy), np.asarray(paper.xy), atol=1e-5)
+    for height in (0.5, 0.35, 0.2):  # the flight's end
+        m, state = measure(_inputs(_sphere_heatmap(rng, np.array([*ground, height + RADIUS]), pose), pose), params,
+                           state)
+    assert float(state.flight) > 0.9
+    inputs = _inputs(_sphere_heatmap(rng, np.array([*ground, 0.06 + RADIUS]), pose), pose)
+    m, _ = measure(inputs, params, state)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    plane_error = np.linalg.norm(_weighted_xy(paper) - ground)
+    assert plane_error > 0.25
+    assert np.linalg.norm(_weighted_xy(m) - ground) < 0.4 * plane_error

@@ -10,7 +10,15 @@ import pytest
 import heatpf_jax as hp
 from heatpf_jax.pieces import StepInputs
 from heatpf_jax.sources.image_centroids import summed_area, summed_areas
-from heatpf_jax.sources.lofted import LoftedParams, LoftedSource, _box_max, air_points, blob_sizes, bright_pixels
+from heatpf_jax.sources.lofted import (
+    LoftedParams,
+    LoftedSource,
+    _box_max,
+    air_points,
+    blob_sizes,
+    bright_pixels,
+    subpixel_peaks,
+)
 
 INTRINSICS = np.array([143.0, 143.0, 99.5, 74.5])
 SHAPE = (150, 200)
@@ -213,3 +221,25 @@ def test_two_ground_blobs_side_by_side_are_not_one_ball_in_the_air():
                        threshold=0.3, plane_height=RADIUS)
     assert float(np.max(np.asarray(blobs.std_px) / np.asarray(blobs.ground_radius_px))) > 0.6 * 1.25  # by mass: flying
     np.testing.assert_allclose(np.asarray(lofted.measure(inputs, LoftedParams()).xy), np.asarray(paper.xy), atol=1e-5)
+
+
+def test_subpixel_peaks_restore_a_gaussians_peak():
+    """A Gaussian blob whose centre falls between pixels: its largest pixel is below the peak (by up to
+    ``exp(-1 / 4 s^2)``); the refined maximum is the peak. A speck, a saturated plateau and every pixel that is no
+    local maximum keep their activations."""
+    rng = np.random.default_rng(9)
+    vv, uu = np.mgrid[0:31, 0:31].astype(np.float64)
+    for _ in range(12):
+        s, peak = rng.uniform(1.0, 3.0), rng.uniform(0.4, 1.0)
+        cu, cv = 15.0 + rng.uniform(-0.5, 0.5, 2)
+        heat = peak * np.exp(-((uu - cu) ** 2 + (vv - cv) ** 2) / (2.0 * s * s))
+        refined = np.asarray(subpixel_peaks(heat.astype(np.float32)))
+        assert refined.max() == pytest.approx(peak, rel=2e-3)
+        assert np.all(refined >= heat.astype(np.float32))
+        changed = refined != heat.astype(np.float32)
+        assert changed.sum() <= 4 and np.all(heat[changed] >= 0.5 * heat.max())  # only the top pixels
+    speck = np.zeros((9, 9), np.float32)
+    speck[4, 4] = 0.9
+    np.testing.assert_array_equal(np.asarray(subpixel_peaks(speck)), speck)
+    plateau = np.clip(3.0 * np.exp(-((uu - 15.3) ** 2 + (vv - 14.8) ** 2) / 18.0), 0.0, 1.0).astype(np.float32)
+    assert float(np.asarray(subpixel_peaks(plateau)).max()) == 1.0
