@@ -39,7 +39,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 GROUND_DF = 5.0  # degrees of freedom of the ground balls' size noise (a Student t: see the module docstring)
 
-__all__ = ["air_log_ratio", "air_probability", "predict_flight"]
+__all__ = ["air_log_ratio", "air_posterior", "air_probability", "predict_flight"]
 
 
 def _log_densities(m, sigma, share, scale):
@@ -48,6 +48,18 @@ def _log_densities(m, sigma, share, scale):
     ground = jnp.log1p(-share) + t.logpdf(m, GROUND_DF, 0.0, sigma)
     air = jnp.log(share) - jnp.log(scale) + jnp.square(sigma) / (2.0 * jnp.square(scale)) - m / scale + norm.logcdf(z)
     return ground, air, mu, z
+
+
+def air_posterior(
+    log_ratio: Float[ArrayLike, "*b"], sigma: Float[ArrayLike, "*b"], share: Float[ArrayLike, ""],
+    scale: Float[ArrayLike, ""],
+) -> tuple[Float[Array, "*b"], Float[Array, "*b"]]:
+    """``(P(air | m), E[x | m])`` in one pass: :func:`air_probability` and :func:`air_log_ratio` together."""
+    m = jnp.asarray(log_ratio, jnp.float32)
+    ground, air, mu, z = _log_densities(m, sigma, share, scale)
+    p_air = jnp.exp(air - jnp.logaddexp(ground, air))
+    mills = jnp.exp(norm.logpdf(z) - norm.logcdf(z))  # phi(z) / Phi(z), stable far into the lower tail
+    return p_air, p_air * jnp.maximum(mu + sigma * mills, 0.0)
 
 
 def air_probability(
@@ -82,11 +94,7 @@ def air_log_ratio(
     Returns:
         Non-negative posterior means, the shape of ``log_ratio``.
     """
-    m = jnp.asarray(log_ratio, jnp.float32)
-    ground, air, mu, z = _log_densities(m, sigma, share, scale)
-    p_air = jnp.exp(air - jnp.logaddexp(ground, air))
-    mills = jnp.exp(norm.logpdf(z) - norm.logcdf(z))  # phi(z) / Phi(z), stable far into the lower tail
-    return p_air * jnp.maximum(mu + sigma * mills, 0.0)
+    return air_posterior(log_ratio, sigma, share, scale)[1]
 
 
 def predict_flight(

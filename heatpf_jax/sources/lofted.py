@@ -80,7 +80,7 @@ from heatpf_jax.camera import ground_jacobian, project_pixel, project_points
 from heatpf_jax.measurements import Measurements, downscale_heatmap
 from heatpf_jax.params import Param, interval, positive, unit_interval
 from heatpf_jax.pieces import StepInputs
-from heatpf_jax.sources.air_prior import air_log_ratio, air_probability, predict_flight
+from heatpf_jax.sources.air_prior import air_posterior, predict_flight
 from heatpf_jax.sources.blob_scale import (
     BlobScaleState,
     blob_scale_estimate,
@@ -646,7 +646,7 @@ class LoftedSource:
         if not isinstance(flight, tuple):
             flight = predict_flight(flight, inputs.dt, params.launch_rate, params.flight_time)
             share = jnp.clip(flight, 1e-6, 1.0 - 1e-6)
-        posterior = air_log_ratio(jnp.where(below, measured, 0.0), sigma, share, params.air_scale)
+        p_air, posterior = air_posterior(jnp.where(below, measured, 0.0), sigma, share, params.air_scale)
         if not isinstance(flight, tuple):
             # The ball is the frame's strongest pixel's blob. A flight starts where a frame shows it clearly: the
             # ball's blob beyond the hard threshold (where the ground noise's polynomial tail outgrows the prior's
@@ -654,16 +654,13 @@ class LoftedSource:
             # it, but starts none: a ground ball whose blob reads a little large frame after frame (split by an
             # occluder, or distant, a few pixels wide) does not add up to a flight.
             ball = jnp.argmax(jnp.where(passes, weight, -1.0))
-            p_ball = air_probability(jnp.where(below[ball], measured[ball], 0.0), sigma[ball], share,
-                                     params.air_scale)
             # A blob beyond the test is a ball in the air, or a ground ball's blob that reads too large (a share
             # ``false_alarm`` of them): one such frame makes a flight likely, a few in a row certain.
             odds = share / (1.0 - share) / jnp.maximum(params.false_alarm, 1e-6)
-            p_ball = jnp.where(below[ball] & ~sized_up[ball], jnp.minimum(p_ball, share), odds / (1.0 + odds))
+            p_ball = jnp.where(below[ball] & ~sized_up[ball], jnp.minimum(p_air[ball], share), odds / (1.0 + odds))
             flight = jnp.where(jnp.any(passes) & soft, p_ball, flight)
         # Moved only where the ball is more likely in the air than not: near a flight (its landing and bounces), not a
         # ground ball whose blob reads large in a frame or, frame after frame, by a bias of its own.
-        p_air = air_probability(jnp.where(below, measured, 0.0), sigma, share, params.air_scale)
         lifted = soft & passes & below & ~sized_up & (p_air > 0.5)
         apparent = jnp.where(lifted, ground_px * jnp.exp(posterior), apparent)
         in_air = sized_up | lifted

@@ -16,7 +16,10 @@ from heatpf_jax.sources.blob_scale import (
     update_blob_scale,
 )
 from heatpf_jax.sources.lofted import LoftedParams, LoftedSource
-from tests.sources.test_lofted import RADIUS, _inputs, _pose, _sphere_heatmap, _weighted_xy
+from tests.sources.test_lofted import MEASURE, RADIUS, _inputs, _pose, _sphere_heatmap, _weighted_xy
+
+CALIBRATED = LoftedSource(max_measurements=256, calibration_frames=32)
+MEASURE_STATE = jax.jit(CALIBRATED.measure_state)  # one compilation for the tests of a calibrated source
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
@@ -73,14 +76,14 @@ def test_a_detector_with_larger_blobs_is_learned():
     balls the learned scale is the detector's, a ground ball gives the paper's measurements again, and a ball in
     the air is still placed under it."""
     rng = np.random.default_rng(17)
-    source = LoftedSource(max_measurements=256, calibration_frames=32)
+    source = CALIBRATED
     params = LoftedParams()
-    measure = jax.jit(source.measure_state)
+    measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
     state = source.init_state()
     ground = np.array([2.4, 0.2])
     heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
-    fixed = source.measure(_inputs(heat, pose), params)
+    fixed = MEASURE(_inputs(heat, pose), params)  # the fixed prior (no state): what LoftedSource.measure gives
     assert np.linalg.norm(_weighted_xy(fixed) - ground) > 0.5  # the prior 0.6 takes it for a ball 1.7x nearer
     for _ in range(6):
         spot = np.array([rng.uniform(1.5, 4.0), rng.uniform(-1.0, 1.0)])
@@ -120,7 +123,7 @@ def test_the_filter_carries_the_learned_scale():
 def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     """When what the frames show is no detector's ball (a learned scale outside [0.25, 2]) or its sizes scatter too
     widely to tell a flying ball, every pixel is measured where it projects: the paper's measurements, exactly."""
-    source = LoftedSource(max_measurements=256, calibration_frames=16)
+    source = CALIBRATED  # 16 of its 32 slots filled
     state = source.init_state()
     scale = state.scale
     for value in ratios:
@@ -131,7 +134,7 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose)  # a ball in the air, 0.5 m up
     inputs = _inputs(heat, pose)
     paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
-    m, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
+    m, _ = MEASURE_STATE(inputs, LoftedParams(), state)
     valid_rows = lambda x: np.sort(np.asarray(x.xy)[np.asarray(x.valid)], axis=0)  # noqa: E731
     assert int(np.sum(m.valid)) == int(np.sum(paper.valid)) > 0
     np.testing.assert_allclose(valid_rows(m), valid_rows(paper), atol=1e-5)
@@ -140,7 +143,7 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     for value in np.log(0.6) + 0.02 * rng.standard_normal(16):
         scale = update_blob_scale(scale, value, True)
     state = source.init_state()._replace(scale=scale)
-    placed, _ = jax.jit(source.measure_state)(inputs, LoftedParams(), state)
+    placed, _ = MEASURE_STATE(inputs, LoftedParams(), state)
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
 
 
@@ -181,9 +184,9 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     flight state says the ball is in the air, and its size places it far nearer the truth than the plane, which puts
     it 13 % of its range too far. Ground balls long after any flight keep the paper's measurements."""
     rng = np.random.default_rng(4)
-    source = LoftedSource(max_measurements=256, calibration_frames=32)
+    source = CALIBRATED
     params = LoftedParams()
-    measure = jax.jit(source.measure_state)
+    measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
     state = source.init_state()
     for _ in range(20):  # ground balls: the detector's scale and spread are learned, the flight state stays low
