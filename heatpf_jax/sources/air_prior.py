@@ -42,21 +42,27 @@ GROUND_DF = 5.0  # degrees of freedom of the ground balls' size noise (a Student
 __all__ = ["air_log_ratio", "air_posterior", "air_probability", "predict_flight"]
 
 
-def _log_densities(m, sigma, share, scale):
-    mu = m - jnp.square(sigma) / scale
-    z = mu / sigma
-    ground = jnp.log1p(-share) + t.logpdf(m, GROUND_DF, 0.0, sigma)
-    air = jnp.log(share) - jnp.log(scale) + jnp.square(sigma) / (2.0 * jnp.square(scale)) - m / scale + norm.logcdf(z)
-    return ground, air, mu, z
-
-
 def air_posterior(
     log_ratio: Float[ArrayLike, "*b"], sigma: Float[ArrayLike, "*b"], share: Float[ArrayLike, ""],
     scale: Float[ArrayLike, ""],
 ) -> tuple[Float[Array, "*b"], Float[Array, "*b"]]:
-    """``(P(air | m), E[x | m])`` in one pass: :func:`air_probability` and :func:`air_log_ratio` together."""
+    """``(P(air | m), E[x | m])``: the posterior probability that a blob of measured log size ratio ``m`` is a ball in
+    the air, and the posterior mean of the ball's true log size ratio (0 on the ground); see the module docstring.
+
+    Args:
+        log_ratio: ``m``, finite.
+        sigma: the ground balls' log-size spread, positive (a scalar, or one per entry of ``log_ratio``).
+        share: ``a``, the prior share of balls in the air, in ``(0, 1)``.
+        scale: ``lam``, the mean log ratio of a ball in the air, positive.
+
+    Returns:
+        Probabilities and non-negative posterior means, each the shape of ``log_ratio``.
+    """
     m = jnp.asarray(log_ratio, jnp.float32)
-    ground, air, mu, z = _log_densities(m, sigma, share, scale)
+    mu = m - jnp.square(sigma) / scale
+    z = mu / sigma
+    ground = jnp.log1p(-share) + t.logpdf(m, GROUND_DF, 0.0, sigma)
+    air = jnp.log(share) - jnp.log(scale) + jnp.square(sigma) / (2.0 * jnp.square(scale)) - m / scale + norm.logcdf(z)
     p_air = jnp.exp(air - jnp.logaddexp(ground, air))
     mills = jnp.exp(norm.logpdf(z) - norm.logcdf(z))  # phi(z) / Phi(z), stable far into the lower tail
     return p_air, p_air * jnp.maximum(mu + sigma * mills, 0.0)
@@ -66,34 +72,15 @@ def air_probability(
     log_ratio: Float[ArrayLike, "*b"], sigma: Float[ArrayLike, ""], share: Float[ArrayLike, ""],
     scale: Float[ArrayLike, ""],
 ) -> Float[Array, "*b"]:
-    """``P(air | m)``: the posterior probability that a blob of measured log size ratio ``m`` is a ball in the air.
-
-    Args:
-        log_ratio: ``m``, finite.
-        sigma: the ground balls' log-size spread, positive.
-        share: ``a``, the prior share of balls in the air, in ``(0, 1)``.
-        scale: ``lam``, the mean log ratio of a ball in the air, positive.
-    """
-    m = jnp.asarray(log_ratio, jnp.float32)
-    ground, air, _, _ = _log_densities(m, sigma, share, scale)
-    return jnp.exp(air - jnp.logaddexp(ground, air))
+    """``P(air | m)`` alone (:func:`air_posterior`)."""
+    return air_posterior(log_ratio, sigma, share, scale)[0]
 
 
 def air_log_ratio(
     log_ratio: Float[ArrayLike, "*b"], sigma: Float[ArrayLike, ""], share: Float[ArrayLike, ""],
     scale: Float[ArrayLike, ""],
 ) -> Float[Array, "*b"]:
-    """``E[x | m]``: the posterior mean of the ball's true log size ratio (0 on the ground), see the module docstring.
-
-    Args:
-        log_ratio: ``m``, finite.
-        sigma: the ground balls' log-size spread, positive.
-        share: ``a``, the prior share of balls in the air, in ``(0, 1)``.
-        scale: ``lam``, the mean log ratio of a ball in the air, positive.
-
-    Returns:
-        Non-negative posterior means, the shape of ``log_ratio``.
-    """
+    """``E[x | m]`` alone (:func:`air_posterior`)."""
     return air_posterior(log_ratio, sigma, share, scale)[1]
 
 

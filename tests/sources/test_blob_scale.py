@@ -76,11 +76,10 @@ def test_a_detector_with_larger_blobs_is_learned():
     balls the learned scale is the detector's, a ground ball gives the paper's measurements again, and a ball in
     the air is still placed under it."""
     rng = np.random.default_rng(17)
-    source = CALIBRATED
     params = LoftedParams()
     measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
-    state = source.init_state()
+    state = CALIBRATED.init_state()
     ground = np.array([2.4, 0.2])
     heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
     fixed = MEASURE(_inputs(heat, pose), params)  # the fixed prior (no state): what LoftedSource.measure gives
@@ -184,11 +183,10 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     flight state says the ball is in the air, and its size places it far nearer the truth than the plane, which puts
     it 13 % of its range too far. Ground balls long after any flight keep the paper's measurements."""
     rng = np.random.default_rng(4)
-    source = CALIBRATED
     params = LoftedParams()
     measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
-    state = source.init_state()
+    state = CALIBRATED.init_state()
     for _ in range(20):  # ground balls: the detector's scale and spread are learned, the flight state stays low
         spot = np.array([rng.uniform(1.5, 3.5), rng.uniform(-0.8, 0.8)])
         m, state = measure(_inputs(_sphere_heatmap(rng, np.array([*spot, RADIUS]), pose), pose), params, state)
