@@ -31,7 +31,11 @@ The size is only as good as what is known of the detector's blob. ``blob_scale``
 blob's softness, size, saturation and blur), so by default it is learned from the heat maps themselves
 (:mod:`heatpf_jax.sources.blob_scale`): the filter carries the last ``calibration_frames`` frames' blob-size ratios
 (``FilterState.source``) and takes their median, since the ball is on the ground most of the time; ``blob_scale`` is
-then only the prior before the first blob. A detector or camera whose ground balls' sizes scatter widely (the world
+then only the prior before the first blob. That median is the size test's reference; a blob's place along its ray is
+read against the ground balls' own centre (:func:`~heatpf_jax.sources.blob_scale.ground_centre`, the mode of the
+recent frames' ratios), which the flights' larger blobs do not pull up: on the development replays with heights kept
+the median lies up to 2.6 % above it (0.6 % on average over the pieces; 0 on the flat ones), and a ball placed by its
+size would lie that much too far along its ray. A detector or camera whose ground balls' sizes scatter widely (the world
 family's, :mod:`heatpf_jax.sim.family`: blob stds of 0.3-1.2 apparent radii, saturated and occluded blobs, false
 blobs twice the ball's size, a calibration error of 1-3 degrees that makes distant balls look too large for their
 projection) has no size that tells a flying ball from a ground one: a blob counts as flying only when its ratio
@@ -59,7 +63,7 @@ Student t of the learned robust spread, :func:`~heatpf_jax.sources.blob_scale.gr
 exponential of mean ``air_scale``). A flight starts only where a frame shows it beyond the hard test (a ground ball's
 blob that reads a little large, once or frame after frame by a bias of its own, starts none), so a ground ball far
 from any flight is measured as before, and a ball landing is followed down. A small blob's size is uncertain by its
-pixel grid, ``1 / (12 s^2)`` in log units beyond the ground balls' spread, in both tests; and a blob's peak is taken
+pixel grid, ``1 / (24 s^2)`` in log units beyond the ground balls' spread, in both tests; and a blob's peak is taken
 between pixel centres (:func:`subpixel_peaks`), where the largest pixel of a blob of 1-1.5 px std lies 4-8 % below
 it and the size would read 2-4 % too large, rising and falling as the ball crosses the pixel grid. Every function
 here is pure and jittable.
@@ -86,6 +90,7 @@ from heatpf_jax.sources.blob_scale import (
     blob_scale_estimate,
     blob_scale_spread,
     frame_log_ratio,
+    ground_centre,
     ground_spread,
     init_blob_scale,
     update_blob_scale,
@@ -600,13 +605,20 @@ class LoftedSource:
         blobs = blob_sizes(heatmap, uv, intrinsics, pose, threshold=params.threshold, plane_height=radius,
                            blob_scale=scale, reach=params.reach, max_half_px=params.max_half_px,
                            iterations=self.iterations)
+        # A blob's size is read against a ground ball's: ``size`` is the detector's blob scale that a ball on the
+        # ground shows. The size test's ``scale`` (a quantile of all recent frames) lies above it by a share of the
+        # flights' sizes; the ground balls' own centre (blob_scale.ground_centre) does not, once enough frames are in.
+        size = scale
         if calib is not None:  # this frame's ratio joins the estimate before its blobs are judged
             calib = update_blob_scale(calib, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
             scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
+            centre, has_centre = ground_centre(calib)
+            size = jnp.where(has_centre, jnp.exp(centre), scale)
         # A small blob's std is measured on a grid of unit pixels, whose variance (1/12 px^2) is of the order of its
-        # own: its log size is uncertain by at least 1 / (12 s^2) beyond the ground balls' spread (0.08 for a distant
-        # ball's blob of 1 px std, 0.02 at 2 px), and its size tells a flight only beyond that.
-        grid = 1.0 / (12.0 * jnp.square(jnp.maximum(blobs.std_px, _MIN_STD_PX)))
+        # own: its variance ``s^2`` is uncertain by about 1/12 px^2, its log size ``log s`` by ``1 / (24 s^2)`` beyond
+        # the ground balls' spread (0.04 for a distant ball's blob of 1 px std, 0.01 at 2 px), and its size tells a
+        # flight only beyond that.
+        grid = 1.0 / (24.0 * jnp.square(jnp.maximum(blobs.std_px, _MIN_STD_PX)))
         min_ratio = jnp.broadcast_to(jnp.asarray(params.min_ratio, jnp.float32), grid.shape)
         soft = jnp.asarray(False)
         sigma = grid
@@ -628,7 +640,7 @@ class LoftedSource:
         # ball too large for the ground, by their minor std as what they are. The std by mass is at least the minor
         # one, so only a blob that its mass reads as flying needs the second moments (a frame without one skips them).
         flying = passes & (blobs.std_px / scale > min_ratio * ground_px)
-        flying = flying | (soft & passes & below & (blobs.std_px / scale > jnp.exp(sigma) * ground_px))
+        flying = flying | (soft & passes & below & (blobs.std_px / size > jnp.exp(sigma) * ground_px))
         span = jnp.clip(2.5 * jnp.maximum(blobs.std_px, _MIN_STD_PX), 1.0, params.max_half_px)
         elongation = lax.cond(
             jnp.any(flying),
@@ -637,6 +649,7 @@ class LoftedSource:
         )
         apparent = blobs.std_px / jnp.sqrt(elongation) / scale
         sized_up = flying & (apparent > min_ratio * ground_px)  # above the horizon: ground radius 0
+        apparent = apparent * (scale / size)  # the ball's apparent radius, for its place along the ray
         # Below the hard threshold, the posterior mean of the ball's size ratio (sources.air_prior): a low ball is not
         # left on the plane, a ground ball's size noise moves it little. How likely the ball flies now is carried from
         # frame to frame (LoftedState.flight).

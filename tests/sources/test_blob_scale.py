@@ -11,6 +11,7 @@ from heatpf_jax.sources.blob_scale import (
     blob_scale_estimate,
     blob_scale_spread,
     frame_log_ratio,
+    ground_centre,
     ground_spread,
     init_blob_scale,
     update_blob_scale,
@@ -146,14 +147,19 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
 
 
-def _ground_spread_reference(values: np.ndarray) -> float:
-    """The shorth's midpoint by brute force over every window of half the values, then 1.4826 times the lower median
-    of the distances below it."""
+def _shorth_reference(values: np.ndarray) -> float:
+    """The shorth's midpoint by brute force over every window of half the values."""
     v = np.sort(np.float64(values))
     half = max(len(v) // 2, 1)
     starts = np.arange(len(v) - half)
     i = starts[np.argmin(v[starts + half] - v[starts])]
-    centre = 0.5 * (v[i] + v[i + half])
+    return 0.5 * (v[i] + v[i + half])
+
+
+def _ground_spread_reference(values: np.ndarray) -> float:
+    """The shorth's midpoint, then 1.4826 times the lower median of the distances below it."""
+    v = np.float64(values)
+    centre = _shorth_reference(v)
     below = centre - v[v < centre]
     return 1.4826 * float(np.quantile(below, 0.5, method="lower"))
 
@@ -176,6 +182,13 @@ def test_ground_spread_ignores_balls_in_the_air():
     for value in values[:7]:
         few = update_blob_scale(few, value, True)
     assert float(ground_spread(few)) == 0.0  # fewer than 8 values: no spread yet
+    # The ground balls' centre: the shorth's midpoint, on log 0.6 where the median of all frames lies above it.
+    centre, has = ground_centre(state)
+    assert bool(has)
+    assert float(centre) == pytest.approx(_shorth_reference(np.float32(values)), abs=1e-5)
+    assert float(centre) == pytest.approx(np.log(0.6), abs=0.01)
+    assert float(np.log(blob_scale_estimate(state, 0.6))) > float(centre) + 0.02
+    assert not bool(ground_centre(few)[1])
 
 
 def test_a_low_ball_after_a_flight_is_placed_by_its_size():
@@ -206,3 +219,28 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     plane_error = np.linalg.norm(_weighted_xy(paper) - ground)
     assert plane_error > 0.25
     assert np.linalg.norm(_weighted_xy(m) - ground) < 0.4 * plane_error
+
+
+def test_a_flying_ball_is_sized_against_the_ground_balls_not_the_flights():
+    """Frames in flights pull the median of all frames' ratios up (3 % here, 14 flights among 31): a ball in
+    the air read against it would look that much smaller and lie that much farther along its ray. It is read against
+    the ground balls' centre (``ground_centre``) instead: placed as with the ground balls' scale known."""
+    rng = np.random.default_rng(12)
+    values = np.concatenate([np.log(0.6) + 0.02 * rng.standard_normal(17), np.log(0.6) + rng.exponential(0.4, 14)])
+    state = CALIBRATED.init_state()
+    scale = state.scale
+    for value in rng.permutation(values):
+        scale = update_blob_scale(scale, value, True)
+    state = state._replace(scale=scale)
+    pose = _pose(0.6, 15.0)
+    inputs = _inputs(_sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose), pose)  # a ball 0.5 m up
+    learned, _ = MEASURE_STATE(inputs, LoftedParams(), state)
+    known = MEASURE(inputs, LoftedParams(blob_scale=0.6))  # the ground balls' scale, fixed
+    median = float(np.exp(np.quantile(np.float32(values), 0.5, method="lower")))
+    assert median > 1.03 * 0.6
+    by_median = MEASURE(inputs, LoftedParams(blob_scale=median))
+    truth = np.array([2.5, 0.0])
+    assert np.linalg.norm(_weighted_xy(known) - truth) < 0.15
+    shift = np.linalg.norm(_weighted_xy(by_median) - _weighted_xy(known))
+    assert shift > 0.05
+    assert np.linalg.norm(_weighted_xy(learned) - _weighted_xy(known)) < 0.2 * shift
