@@ -274,10 +274,11 @@ def reference_frames(seq, info) -> dict[str, int]:
             "light": int(frames[np.argmax(light[frames])])}
 
 
-def filter_error(seq, method: str, seed: int) -> float:
+def filter_error(seq, method: str, seed: int, keys: int = 1) -> float:
     """``METHOD`` or ``METHOD:NAME=VALUE[+...]``: static options and parameters by name, as ``benchmarks/worlds.py``
     takes them (``heatmap:source=pixels+threshold=0.5``), on top of the sequence's own settings as ``heatpf run``
-    applies them (``heatpf colour``'s ``source=pixels``)."""
+    applies them (``heatpf colour``'s ``source=pixels``). With ``keys`` > 1 the mean over the filter's PRNG keys
+    ``key(seed)`` and ``fold_in(key(seed), j)``, ``j = 1 .. keys - 1`` (the filter's own randomness)."""
     import contextlib
     import io
 
@@ -294,9 +295,13 @@ def filter_error(seq, method: str, seed: int) -> float:
     model, params = hp.build(name, options)
     if overrides:
         params = P.set_by_name(params, model.properties(), overrides)
-    mean = np.asarray(hp.run(jax.random.key(seed), seq, params, model).info.mean, np.float64)
-    err = np.linalg.norm(mean - seq.ground_truth, axis=1)[10:]
-    return float(np.mean(np.where(np.isfinite(err), err, 10.0)))
+    errors = []
+    for j in range(keys):
+        key = jax.random.key(seed) if j == 0 else jax.random.fold_in(jax.random.key(seed), j)
+        mean = np.asarray(hp.run(key, seq, params, model).info.mean, np.float64)
+        err = np.linalg.norm(mean - seq.ground_truth, axis=1)[10:]
+        errors.append(np.mean(np.where(np.isfinite(err), err, 10.0)))
+    return float(np.mean(errors))
 
 
 def _command(args: list[str], cache: Path, pythonpath: str | None = None) -> tuple[float, str]:
@@ -368,6 +373,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0:3")
     parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--keys", type=int, default=1, help="the filters' PRNG keys per run, averaged")
     parser.add_argument("--scenario", default="standard")
     parser.add_argument("--renderers", default="ours,numpy")
     parser.add_argument("--methods", default="heatmap,extended")
@@ -400,7 +406,7 @@ def main(argv=None) -> int:
             if renderer == "numpy":
                 seq = seq._replace(images=render_numpy(seq, info, seed))
             picks = reference_frames(seq, info)
-            detector = {m: filter_error(seq, m, seed) for m in methods}
+            detector = {m: filter_error(seq, m, seed, args.keys) for m in methods}
             for which in args.frames.split(","):
                 t0 = picks[which.removesuffix("-image").removesuffix("-jpeg").removesuffix("-plain")]
                 for scale in scales:
@@ -414,7 +420,7 @@ def main(argv=None) -> int:
                                                            jpeg=which.endswith("-jpeg"))
                         else:
                             colour, ref = colour_sequence(seq, box=box, frame=t0, params=params)
-                        errs = {m: filter_error(colour, m, seed) for m in methods}
+                        errs = {m: filter_error(colour, m, seed, args.keys) for m in methods}
                         rows.append((renderer, seed, which, scale, offset, detector, errs))
                         got = "" if ref is None else f"-> {ref.box} score {ref.score:.3f} "
                         print(f"{renderer:5s} seed {seed:3d} {which:5s} frame {t0:3d} box x{scale:.2f} "

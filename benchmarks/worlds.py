@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from heatpf_jax.cli.settings import parse_seeds
-from heatpf_jax.evaluate import ScenarioResult, Variant, evaluate_sequences
+from heatpf_jax.evaluate import MethodResult, ScenarioResult, Variant, evaluate_sequences
 from heatpf_jax.presets import FilterOptions
 from heatpf_jax.sim.replay import IN_AIR_HEIGHT
 
@@ -118,15 +118,30 @@ def variant_options(spec: str) -> tuple[FilterOptions, dict]:
     return FilterOptions()._replace(**options), {k: float(v) for k, v in items.items() if k not in options}
 
 
-def evaluate(name, seqs, methods) -> ScenarioResult:
+def evaluate(name, seqs, methods, keys: int = 1) -> ScenarioResult:
     """Every method on the world's sequences; ``METHOD:SOURCE`` runs METHOD with ``FilterOptions(source=SOURCE)``,
-    ``METHOD:FIELD=VALUE[+FIELD=VALUE]`` with those static options (``heatmap:motion=rolling_ball``)."""
+    ``METHOD:FIELD=VALUE[+FIELD=VALUE]`` with those static options (``heatmap:motion=rolling_ball``).
+
+    With ``keys`` > 1 every sequence is run with the filters' PRNG seeds ``0 .. keys - 1`` and the results are
+    stacked seed after seed (``[keys * S, T]``): the filters' own randomness averaged out."""
+    if keys > 1:
+        runs = [_evaluate_once(name, seqs, methods, seed) for seed in range(keys)]
+        rows = [MethodResult(r.variant, *(None if getattr(r, f) is None
+                                          else np.concatenate([getattr(run.methods[i], f) for run in runs])
+                                          for f in ("estimates", "errors", "radial", "lateral")))
+                for i, r in enumerate(runs[0].methods)]
+        return ScenarioResult(name, np.concatenate([run.truth for run in runs]), rows, runs[0].burn_in)
+    return _evaluate_once(name, seqs, methods, 0)
+
+
+def _evaluate_once(name, seqs, methods, seed) -> ScenarioResult:
     by_options: dict[FilterOptions, list[Variant]] = {}
     for m in methods:
         method, _, spec = m.partition(":")
         options, overrides = variant_options(spec)
         by_options.setdefault(options, []).append(Variant(m, method, overrides))
-    parts = [evaluate_sequences(name, seqs, variants=v, options=options) for options, v in by_options.items()]
+    parts = [evaluate_sequences(name, seqs, variants=v, options=options, seed=seed)
+             for options, v in by_options.items()]
     order = {m: i for i, m in enumerate(methods)}
     rows = sorted((r for part in parts for r in part.methods), key=lambda r: order[r.variant.name])
     return ScenarioResult(name, parts[0].truth, rows, parts[0].burn_in)
@@ -152,6 +167,8 @@ def main(argv=None) -> int:
     parser.add_argument("--split-height", action="store_true",
                         help="also each method's mean error by the ball's bottom height over the ground: 0, "
                         "(0, 0.02], (0.02, 0.05], (0.05, 0.1] m (all counted as ground steps) and above 0.1 m")
+    parser.add_argument("--keys", type=int, default=1, help="run every world with the filters' PRNG seeds 0 .. "
+                        "KEYS-1 and average (the filters' own randomness: one key's means move by up to 20 %%)")
     args = parser.parse_args(argv)
     seeds = list(parse_seeds(args.seeds, 3))
     methods = args.methods.split(",")
@@ -168,15 +185,20 @@ def main(argv=None) -> int:
     ratios = {}
     for name, seqs, in_air, heights in worlds:
         t0 = time.perf_counter()
-        result = evaluate(name, seqs, methods)
+        result = evaluate(name, seqs, methods, args.keys)
+        in_air, heights = np.tile(in_air, (args.keys, 1)), np.tile(heights, (args.keys, 1))
         stats = {m.variant.name: m.stats(result.burn_in) for m in result.methods}
         cells = [f"{s['mean']:.3f} ({s['radial']:.3f}/{s['lateral']:.3f})" for s in stats.values()]
         print(f"{name:<28}" + "".join(f"{c:>24}" for c in cells) + f"   [{time.perf_counter() - t0:.0f} s]",
               flush=True)
         if args.per_seed:
             for r in result.methods:  # one line per method: the seeds' (pieces') means
-                means = " ".join(f"{e:.3f}" for e in r.errors[:, result.burn_in:].mean(axis=1))
+                per = r.errors[:, result.burn_in:].mean(axis=1).reshape(args.keys, -1).mean(axis=0)
+                means = " ".join(f"{e:.3f}" for e in per)
                 print(f"    per seed {r.variant.name}: {means}", flush=True)
+                if args.keys > 1:  # the filter's own randomness: each key's mean over the seeds
+                    per_key = r.errors[:, result.burn_in:].reshape(args.keys, -1).mean(axis=1)
+                    print(f"    per key {r.variant.name}: " + " ".join(f"{e:.3f}" for e in per_key), flush=True)
         if args.split_air:
             masks = air_masks(in_air, result.burn_in)
             counts = "/".join(str(int(v.sum())) for v in masks.values())
