@@ -260,7 +260,7 @@ def test_piece_properties_validation_and_filter_params():
     assert isinstance(piece, ObservationModel)
     assert hash(piece) == hash(FootprintTemplate()) and piece == FootprintTemplate()
     params = piece.default_params()
-    assert params == FootprintTemplateParams(k=10, gain=2.0, template_px=1.0, min_std=0.12)
+    assert params == FootprintTemplateParams(k=10, gain=2.0, template_px=1.0, min_std=0.08)
     assert FootprintTemplate(k_max=4).default_params().k == 4
     props = piece.properties()
     assert jax.tree.structure(params) == jax.tree.structure(props, is_leaf=lambda x: isinstance(x, P.Param))
