@@ -98,6 +98,9 @@ class FilterState(NamedTuple):
         memory: the long-term memory's tracks (:class:`~heatpf_jax.memory.table.TrackTable`; capacity 0 without).
         source: what the source carries from frame to frame (a source with ``init_state``, e.g. the blob scale
             :class:`~heatpf_jax.sources.lofted.LoftedSource` learns); ``()`` for a source without.
+        injection: what the injectors carry, one entry per injector in order (``()`` for one without
+            ``init_state``, e.g. the support averages of
+            :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`); ``()`` when none carries anything.
     """
 
     particles: Any
@@ -107,6 +110,7 @@ class FilterState(NamedTuple):
     t: Int[Array, ""]
     memory: TrackTable
     source: Any = ()
+    injection: Any = ()
 
 
 class StepInfo(NamedTuple):
@@ -256,7 +260,14 @@ class Filter(NamedTuple):
             t=jnp.zeros((), jnp.int32),
             memory=self.memory.init(),
             source=self.source.init_state() if hasattr(self.source, "init_state") else (),
+            injection=self._init_injection(),
         )
+
+    def _init_injection(self) -> tuple:
+        """The injectors' carried states in order (``()`` for one without ``init_state``); ``()`` if none has one."""
+        if not any(hasattr(inj, "init_state") for inj in self.injectors):
+            return ()
+        return tuple(inj.init_state() if hasattr(inj, "init_state") else () for inj in self.injectors)
 
     def _seed(self, key, state: FilterState, particles, buffer, ego_tracks, dt, params: FilterParams):
         """Injectors with a ``seed`` method act on the predicted particles before the weighting (re-detection
@@ -355,11 +366,16 @@ class Filter(NamedTuple):
             measurements=buffer,
             memory=tracks,
             memory_lost=self.memory.lost(tracks, params.memory),
+            has_heatmap=inputs.has_heatmap,
         )
         # One injector takes the step's key itself; several split it.
         keys = (k_inject,) if len(self.injectors) == 1 else tuple(jax.random.split(k_inject, len(self.injectors)))
-        for injector, k in zip(self.injectors, keys, strict=True):
-            context = injector.inject(k, context, params.injectors[injector.name])
+        carried = list(state.injection) if state.injection else [()] * len(self.injectors)
+        for i, (injector, k) in enumerate(zip(self.injectors, keys, strict=True)):
+            if hasattr(injector, "inject_state"):  # an injector that carries a state (its init_state)
+                context, carried[i] = injector.inject_state(k, context, params.injectors[injector.name], carried[i])
+            else:
+                context = injector.inject(k, context, params.injectors[injector.name])
 
         new_state = FilterState(
             particles=context.particles,
@@ -369,6 +385,7 @@ class Filter(NamedTuple):
             t=state.t + 1,
             memory=tracks,
             source=source_state,
+            injection=tuple(carried) if state.injection else (),
         )
         info = StepInfo(
             mean=est.mean,

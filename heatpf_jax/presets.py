@@ -32,6 +32,7 @@ from heatpf_jax.injection.explorers import (
 )
 from heatpf_jax.injection.measurement_explorers import MeasurementExplorers
 from heatpf_jax.injection.memory_hints import MemoryHints, RedetectionSeeds
+from heatpf_jax.injection.support_drop import SupportDropExplorers
 from heatpf_jax.memory.track_memory import NoMemory, TrackMemory
 from heatpf_jax.motion.constant_velocity import ConstantVelocity
 from heatpf_jax.motion.ego import EGO_MOTIONS
@@ -61,6 +62,7 @@ __all__ = [
     "MOTIONS",
     "Method",
     "OBSERVATIONS",
+    "RESETTINGS",
     "SOURCES",
     "SPAWNS",
     "FilterOptions",
@@ -79,6 +81,10 @@ __all__ = [
 
 SPAWNS = ("uniform", "gaussian")
 SOURCES = ("pixels", "centroids", "lofted")
+RESETTINGS = {  # explorers at the measurements (sensor resetting), by name
+    "fixed": MeasurementExplorers,
+    "support": SupportDropExplorers,
+}
 MOTIONS = {  # what moves the particles between heat maps (III-D; Olufs 3.3), by name
     "random_walk": RandomWalk,
     "constant_velocity": ConstantVelocity,
@@ -152,6 +158,11 @@ class FilterOptions(NamedTuple):
         hover_frames: with the ``"lofted"`` source, frames whose blobs read as flying are remembered
             (:mod:`heatpf_jax.sources.hover`: a blob read as flying at a place where one was read so 0.25-1 s before
             lies on the ground); 0 (default): no such test. 16 for a field with static clutter larger than the ball.
+        resetting: how ``heatmap`` and ``extended`` draw explorers at the measurements (sensor resetting): ``"auto"``
+            (the method's own), ``"fixed"`` (a fixed share every step,
+            :class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`) or ``"support"`` (as far as
+            the evidence at the estimate has dropped below its recent level, Augmented MCL:
+            :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`). The other methods draw none.
     """
 
     num_particles: int = 500
@@ -171,6 +182,7 @@ class FilterOptions(NamedTuple):
     source: str = AUTO
     motion: str = AUTO
     hover_frames: int = 0
+    resetting: str = AUTO
 
 
 def validate_options(options: FilterOptions) -> None:
@@ -192,6 +204,8 @@ def validate_options(options: FilterOptions) -> None:
         raise ValueError(f"source: must be one of {[AUTO, *SOURCES]}, got {options.source!r}")
     if options.motion not in (AUTO, *MOTIONS):
         raise ValueError(f"motion: must be one of {[AUTO, *MOTIONS]}, got {options.motion!r}")
+    if options.resetting not in (AUTO, *RESETTINGS):
+        raise ValueError(f"resetting: must be one of {[AUTO, *RESETTINGS]}, got {options.resetting!r}")
     if options.observation not in (AUTO, *OBSERVATIONS):
         raise ValueError(f"observation: must be one of {[AUTO, *OBSERVATIONS]}, got {options.observation!r}")
     if options.modes not in MODE_FINDERS:
@@ -231,6 +245,11 @@ def _particle_filter(options: FilterOptions, source, observation: str = "inverse
 def _motion(options: FilterOptions, default: str):
     """The motion model named by ``options.motion``, the method's ``default`` when ``"auto"``."""
     return MOTIONS[default if options.motion == AUTO else options.motion]()
+
+
+def _resetting(options: FilterOptions, default: str = "fixed"):
+    """The explorers at the measurements named by ``options.resetting``, the method's ``default`` when ``"auto"``."""
+    return RESETTINGS[default if options.resetting == AUTO else options.resetting]()
 
 
 def _memory(options: FilterOptions):
@@ -276,7 +295,7 @@ def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     its default params are :func:`heatmap_params`."""
     base = _particle_filter(options, _pixels(options, "lofted"), observation="range_aware")
     return _with_hints(base._replace(motion=_motion(options, "constant_velocity"),
-                                     injectors=(*base.injectors, MeasurementExplorers())))
+                                     injectors=(*base.injectors, _resetting(options))))
 
 
 def heatmap_params(model: Filter) -> FilterParams:
@@ -309,7 +328,7 @@ def extended_filter(options: FilterOptions = FilterOptions()) -> Filter:
         motion=_motion(options, "mass_inertia"),
         resampling=ClusterResampling(resampler=RESAMPLERS[options.resampler], correct=False),
         estimator=DominantMode(),
-        injectors=(*base.injectors, RandomParticles(box=box), MeasurementExplorers()),
+        injectors=(*base.injectors, RandomParticles(box=box), _resetting(options)),
     ))
 
 

@@ -19,7 +19,16 @@ __all__ = ["add_parser", "cmd_params", "describe_method"]
 def _option_choices() -> dict[str, str]:
     from heatpf_jax.motion.ego import EGO_MOTIONS
     from heatpf_jax.observation.kernels import KNN_METHODS
-    from heatpf_jax.presets import MEMORIES, MODE_FINDERS, MOTIONS, OBSERVATIONS, RESAMPLERS, SOURCES, SPAWNS
+    from heatpf_jax.presets import (
+        MEMORIES,
+        MODE_FINDERS,
+        MOTIONS,
+        OBSERVATIONS,
+        RESAMPLERS,
+        RESETTINGS,
+        SOURCES,
+        SPAWNS,
+    )
 
     return {
         "resampler": "one of " + ", ".join(sorted(RESAMPLERS)),
@@ -32,6 +41,7 @@ def _option_choices() -> dict[str, str]:
         "memory": "one of " + ", ".join(MEMORIES),
         "source": "one of auto, " + ", ".join(SOURCES),
         "motion": "one of auto, " + ", ".join(MOTIONS),
+        "resetting": "one of auto, " + ", ".join(RESETTINGS),
     }
 
 

@@ -175,7 +175,8 @@ def option_alternatives(field: str) -> list:
     others = {"resampler": ["residual"], "spawn": ["gaussian"], "spawn_box": [(0.0, 1.0, 0.0, 1.0)],
               "observation": ["gaussian", "inverse_distance"], "knn": ["dense"], "modes": ["kmeans"],
               "ego": ["none"], "memory": ["tracks"],
-              "source": ["pixels", "centroids"], "motion": ["random_walk", "rolling_ball"]}
+              "source": ["pixels", "centroids"], "motion": ["random_walk", "rolling_ball"],
+              "resetting": ["support"]}
     if field in others:
         return others[field]
     return [FilterOptions._field_defaults[field] + 1]

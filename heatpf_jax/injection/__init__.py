@@ -2,6 +2,7 @@
 
 * :mod:`~heatpf_jax.injection.explorers`: the paper's explorers and random particles;
 * :mod:`~heatpf_jax.injection.measurement_explorers`: explorers drawn at measurements;
+* :mod:`~heatpf_jax.injection.support_drop`: explorers at measurements when the estimate's support drops;
 * :mod:`~heatpf_jax.injection.memory_hints`: hint particles and re-detection seeds from the memory.
 """
 
@@ -34,6 +35,13 @@ from heatpf_jax.injection.memory_hints import (
     RedetectionSeeds,
     SeedParams,
 )
+from heatpf_jax.injection.support_drop import (
+    SupportDropExplorers,
+    SupportDropParams,
+    SupportState,
+    support_at,
+    support_update,
+)
 
 __all__ = [
     "ExplorerParams",
@@ -48,6 +56,9 @@ __all__ = [
     "RandomParticles",
     "RedetectionSeeds",
     "SeedParams",
+    "SupportDropExplorers",
+    "SupportDropParams",
+    "SupportState",
     "UniformBox",
     "UniformExplorers",
     "explorer_count",
@@ -58,5 +69,7 @@ __all__ = [
     "sample_measurements",
     "spawn_gaussian",
     "spawn_uniform",
+    "support_at",
+    "support_update",
     "take_slots",
 ]

@@ -123,6 +123,7 @@ class InjectionContext(NamedTuple):
         memory_lost: ``bool [M]`` the tracks the filter has lost (:func:`heatpf_jax.memory.table.lost_tracks`).
         recall: before the weighting only (injectors' ``seed``), the lost tracks this step's measurements
             re-detect (:class:`heatpf_jax.memory.track_memory.Recall`).
+        has_heatmap: ``bool []`` whether this step brought a new heat map (``None`` where unknown).
     """
 
     particles: Any
@@ -136,6 +137,7 @@ class InjectionContext(NamedTuple):
     memory: Any = None
     memory_lost: Any = None
     recall: Any = None
+    has_heatmap: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

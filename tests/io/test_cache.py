@@ -126,7 +126,7 @@ def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeyp
     from jax import export
 
     import heatpf_jax as hp
-    from heatpf_jax.io.cache import run_estimates
+    from heatpf_jax.io.cache import _program_key, run_estimates
     from tests.conftest import SMALL_FILTER
 
     params = SMALL_FILTER.make_params(k=2)
@@ -143,11 +143,14 @@ def test_exported_run_is_loaded_and_equals_run(tmp_path, small_sequence, monkeyp
     monkeypatch.setattr(export, "export", lambda *a, **k: (_ for _ in ()).throw(AssertionError("exported again")))
     again, _, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
     np.testing.assert_array_equal(again, mean)
-    # Another question (another model) never loads this program.
+    # Another question (another model, other shapes) is another program's key: it never loads this one.
     monkeypatch.undo()
-    other = SMALL_FILTER._replace(num_particles=64)
-    run_estimates(key, small_sequence, other.default_params(), other, tmp_path)
-    assert len(list((tmp_path / "exports").iterdir())) == 2
+    args = (np.asarray(jax.random.key_data(key)), *jax.tree.leaves((small_sequence, params)))
+    treedef = jax.tree.structure((small_sequence, params))
+    assert _program_key(SMALL_FILTER, treedef, args) != _program_key(SMALL_FILTER._replace(num_particles=64), treedef,
+                                                                      args)
+    assert _program_key(SMALL_FILTER, treedef, args) != _program_key(SMALL_FILTER, treedef, (args[0], *(
+        np.zeros((2, *np.shape(a)), np.asarray(a).dtype) if i == 0 else a for i, a in enumerate(args[1:]))))
     # A damaged file is replaced, with the same estimates.
     files[0].write_bytes(b"garbage")
     fixed, _, _, _ = run_estimates(key, small_sequence, params, SMALL_FILTER, tmp_path)
