@@ -23,6 +23,7 @@ from heatpf_jax.estimate.dominant_mode import DominantMode
 from heatpf_jax.estimate.modes import GaussianMixtureModes, KMeansModes, MeanShiftModes, NoModes
 from heatpf_jax.estimate.top_fraction import TopFraction, TopFractionParams
 from heatpf_jax.filter import Filter, FilterParams
+from heatpf_jax.injection.birth_weight import BirthWeightedExplorers
 from heatpf_jax.injection.explorers import (
     ExplorerParams,
     GaussianExplorers,
@@ -84,6 +85,7 @@ SOURCES = ("pixels", "centroids", "lofted")
 RESETTINGS = {  # explorers at the measurements (sensor resetting), by name
     "fixed": MeasurementExplorers,
     "support": SupportDropExplorers,
+    "birth": BirthWeightedExplorers,
 }
 MOTIONS = {  # what moves the particles between heat maps (III-D; Olufs 3.3), by name
     "random_walk": RandomWalk,
@@ -162,7 +164,9 @@ class FilterOptions(NamedTuple):
             (the method's own), ``"fixed"`` (a fixed share every step,
             :class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`) or ``"support"`` (as far as
             the evidence at the estimate has dropped below its recent level, Augmented MCL:
-            :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`). The other methods draw none.
+            :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`) or ``"birth"`` (the fixed share, each
+            with its importance weight against a prior that keeps a small chance of the ball being anywhere:
+            :class:`~heatpf_jax.injection.birth_weight.BirthWeightedExplorers`). The other methods draw none.
     """
 
     num_particles: int = 500

@@ -3,9 +3,11 @@
 * :mod:`~heatpf_jax.injection.explorers`: the paper's explorers and random particles;
 * :mod:`~heatpf_jax.injection.measurement_explorers`: explorers drawn at measurements;
 * :mod:`~heatpf_jax.injection.support_drop`: explorers at measurements when the estimate's support drops;
+* :mod:`~heatpf_jax.injection.birth_weight`: explorers at measurements with their importance weight;
 * :mod:`~heatpf_jax.injection.memory_hints`: hint particles and re-detection seeds from the memory.
 """
 
+from heatpf_jax.injection.birth_weight import BirthParams, BirthWeightedExplorers, birth_log_weight
 from heatpf_jax.injection.explorers import (
     ExplorerParams,
     GaussianExplorerParams,
@@ -44,6 +46,8 @@ from heatpf_jax.injection.support_drop import (
 )
 
 __all__ = [
+    "BirthParams",
+    "BirthWeightedExplorers",
     "ExplorerParams",
     "GaussianExplorerParams",
     "GaussianExplorers",
@@ -64,6 +68,7 @@ __all__ = [
     "explorer_count",
     "explorer_mask",
     "explorer_slots",
+    "birth_log_weight",
     "refill",
     "replace_slots",
     "sample_measurements",
