@@ -32,6 +32,7 @@ from heatpf_jax.injection.explorers import (
     UniformExplorers,
 )
 from heatpf_jax.injection.measurement_explorers import MeasurementExplorers
+from heatpf_jax.injection.measurement_seeds import ReacquisitionSeeds
 from heatpf_jax.injection.memory_hints import MemoryHints, RedetectionSeeds
 from heatpf_jax.injection.support_drop import SupportDropExplorers
 from heatpf_jax.memory.track_memory import NoMemory, TrackMemory
@@ -86,6 +87,7 @@ RESETTINGS = {  # explorers at the measurements (sensor resetting), by name
     "fixed": MeasurementExplorers,
     "support": SupportDropExplorers,
     "birth": BirthWeightedExplorers,
+    "seeds": ReacquisitionSeeds,
 }
 MOTIONS = {  # what moves the particles between heat maps (III-D; Olufs 3.3), by name
     "random_walk": RandomWalk,
@@ -166,7 +168,10 @@ class FilterOptions(NamedTuple):
             the evidence at the estimate has dropped below its recent level, Augmented MCL:
             :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`) or ``"birth"`` (the fixed share, each
             with its importance weight against a prior that keeps a small chance of the ball being anywhere:
-            :class:`~heatpf_jax.injection.birth_weight.BirthWeightedExplorers`). The other methods draw none.
+            :class:`~heatpf_jax.injection.birth_weight.BirthWeightedExplorers`) or ``"seeds"`` (the fixed share,
+            and as much again at this step's measurements before the weighting on a step where nothing lies near the
+            predicted cloud: a ball that reappears is weighed on the heat map that first shows it,
+            :class:`~heatpf_jax.injection.measurement_seeds.ReacquisitionSeeds`). The other methods draw none.
     """
 
     num_particles: int = 500

@@ -4,6 +4,8 @@
 * :mod:`~heatpf_jax.injection.measurement_explorers`: explorers drawn at measurements;
 * :mod:`~heatpf_jax.injection.support_drop`: explorers at measurements when the estimate's support drops;
 * :mod:`~heatpf_jax.injection.birth_weight`: explorers at measurements with their importance weight;
+* :mod:`~heatpf_jax.injection.measurement_seeds`: explorers at this step's measurements before the weighting when the
+  cloud has lost the ball;
 * :mod:`~heatpf_jax.injection.memory_hints`: hint particles and re-detection seeds from the memory.
 """
 
@@ -31,6 +33,7 @@ from heatpf_jax.injection.measurement_explorers import (
     MeasurementParams,
     sample_measurements,
 )
+from heatpf_jax.injection.measurement_seeds import ReacquisitionParams, ReacquisitionSeeds, cloud_mean
 from heatpf_jax.injection.memory_hints import (
     HintParams,
     MemoryHints,
@@ -58,6 +61,8 @@ __all__ = [
     "MemoryHints",
     "RandomParams",
     "RandomParticles",
+    "ReacquisitionParams",
+    "ReacquisitionSeeds",
     "RedetectionSeeds",
     "SeedParams",
     "SupportDropExplorers",
@@ -69,6 +74,7 @@ __all__ = [
     "explorer_mask",
     "explorer_slots",
     "birth_log_weight",
+    "cloud_mean",
     "refill",
     "replace_slots",
     "sample_measurements",

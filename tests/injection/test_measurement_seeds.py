@@ -1,0 +1,87 @@
+"""Re-acquisition seeds: before the weighting, the share at this step's measurements only where nothing lies within
+the gate of the predicted cloud's mean (against a NumPy weighted mean and distance check), in random slots; after the
+resampling the fixed share; and a filter whose step weighs the seeds on the heat map that first shows the blob."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import heatpf_jax as hp
+from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean
+from heatpf_jax.motion.random_walk import Particles
+
+
+def _context(rng, n, blob_xy):
+    xy = rng.normal(size=(n, 2)) * 0.2 + np.array([1.0, 0.0])
+    log_w = np.log(rng.uniform(0.5, 1.5, size=n))
+    m = 16
+    buffer = hp.measurements.empty_measurements(m)._replace(
+        xy=jnp.asarray(np.tile(blob_xy, (m, 1)) + rng.normal(size=(m, 2)) * 0.01, jnp.float32),
+        weight=jnp.asarray(rng.uniform(0.3, 1.0, size=m), jnp.float32),
+        valid=jnp.asarray(np.arange(m) < 10),
+    )
+    return hp.injection.InjectionContext(
+        particles=Particles(jnp.asarray(xy, jnp.float32)), log_weights=jnp.asarray(log_w, jnp.float32),
+        rank=jnp.arange(n, dtype=jnp.int32), used=jnp.int32(0), estimate=None, motion=hp.motion.RandomWalk(),
+        motion_params=hp.motion.RandomWalkParams(), measurements=buffer)
+
+
+def test_cloud_mean_is_the_weighted_mean(rng):
+    xy = rng.normal(size=(50, 2))
+    log_w = rng.normal(size=50)
+    w = np.exp(log_w) / np.exp(log_w).sum()
+    np.testing.assert_allclose(np.asarray(cloud_mean(jnp.asarray(xy, jnp.float32), jnp.asarray(log_w, jnp.float32))),
+                               w @ xy, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize(("blob", "seeded"), [((3.0, 2.0), True), ((1.3, 0.1), False)])
+def test_seeds_before_the_weighting_only_where_the_cloud_has_no_support(rng, blob, seeded):
+    """A blob 2.8 m from the cloud's mean: 8 of 40 particles (0.2) moved onto it; 0.32 m away (inside the 0.5 m gate):
+    none moved."""
+    n = 40
+    ctx = _context(rng, n, np.array(blob))
+    out = ReacquisitionSeeds().seed(jax.random.key(3), ctx, ReacquisitionParams(measurement_fraction=0.2,
+                                                                                measurement_jitter=0.02))
+    moved = np.any(np.asarray(out.particles.xy) != np.asarray(ctx.particles.xy), axis=1)
+    assert moved.sum() == (8 if seeded else 0)
+    assert int(out.used) == (8 if seeded else 0)
+    if seeded:
+        np.testing.assert_allclose(np.asarray(out.particles.xy)[moved], np.tile(blob, (8, 1)), atol=0.15)
+        # Random slots, not the last ranks (rank is 0..n-1 by slot here).
+        assert not np.array_equal(np.flatnonzero(moved), np.arange(n - 8, n))
+
+
+def test_the_fixed_share_after_the_resampling(rng):
+    """``inject`` is ``MeasurementExplorers``'s: the share of the lowest-support slots, wherever the cloud is."""
+    n = 40
+    ctx = _context(rng, n, np.array([1.2, 0.0]))._replace(estimate=hp.Estimate(jnp.zeros(2), jnp.eye(2), jnp.zeros(2)))
+    params = ReacquisitionParams(measurement_fraction=0.25)
+    out = ReacquisitionSeeds().inject(jax.random.key(0), ctx, params)
+    ref = hp.injection.MeasurementExplorers().inject(jax.random.key(0), ctx, hp.injection.MeasurementParams(0.25))
+    np.testing.assert_array_equal(np.asarray(out.particles.xy), np.asarray(ref.particles.xy))
+    assert int(out.used) == 10
+
+
+def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(small_sequence):
+    """A cloud 2 m from the ball and a heat map that shows it (eq. 1, 128 particles): with the seeds the step's estimate
+    has moved most of the way to the ball (0.70 m from it); with the fixed share after the resampling alone it is still
+    at the cloud (1.98 m)."""
+    from tests.conftest import SMALL_FILTER, step_inputs
+
+    inputs = step_inputs(small_sequence, 5)
+    ball = np.asarray(small_sequence.ground_truth[5])
+    away = ball + np.array([0.0, 2.0])
+    seeds = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, ReacquisitionSeeds()))
+    fixed = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, hp.injection.MeasurementExplorers()))
+    for model, on_ball in ((seeds, True), (fixed, False)):
+        params = model.default_params()
+        state = model.init(jax.random.key(0), params)
+        n = state.particles.xy.shape[0]
+        cloud = np.random.default_rng(0).normal(size=(n, 2)) * 0.05 + away
+        state = state._replace(particles=state.particles._replace(xy=jnp.asarray(cloud, jnp.float32)))
+        _, info = model.step(jax.random.key(1), state, inputs, params)
+        distance = float(np.linalg.norm(np.asarray(info.mean) - ball))
+        assert (distance < 1.0) if on_ball else (distance > 1.8), distance
