@@ -288,6 +288,7 @@ class Filter(NamedTuple):
             measurements=buffer,
             memory=state.memory,
             recall=recall,
+            previous_measurements=state.buffer,
         )
         k_seed = jax.random.fold_in(key, 11)  # a key of its own: the other stages' keys stay those without seeds
         for i, injector in enumerate(seeders):

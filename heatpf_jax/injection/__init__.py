@@ -33,7 +33,7 @@ from heatpf_jax.injection.measurement_explorers import (
     MeasurementParams,
     sample_measurements,
 )
-from heatpf_jax.injection.measurement_seeds import ReacquisitionParams, ReacquisitionSeeds, cloud_mean
+from heatpf_jax.injection.measurement_seeds import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support
 from heatpf_jax.injection.memory_hints import (
     HintParams,
     MemoryHints,
@@ -73,6 +73,7 @@ __all__ = [
     "explorer_count",
     "explorer_mask",
     "explorer_slots",
+    "has_support",
     "birth_log_weight",
     "cloud_mean",
     "refill",

@@ -124,6 +124,8 @@ class InjectionContext(NamedTuple):
         recall: before the weighting only (injectors' ``seed``), the lost tracks this step's measurements
             re-detect (:class:`heatpf_jax.memory.track_memory.Recall`).
         has_heatmap: ``bool []`` whether this step brought a new heat map (``None`` where unknown).
+        previous_measurements: before the weighting only (injectors' ``seed``), the previous step's measurement buffer
+            (``None`` where unknown).
     """
 
     particles: Any
@@ -138,6 +140,7 @@ class InjectionContext(NamedTuple):
     memory_lost: Any = None
     recall: Any = None
     has_heatmap: Any = None
+    previous_measurements: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

@@ -6,13 +6,16 @@ later, so a ball that reappears (after a long occlusion, out of view, beyond the
 estimate one heat map after it is first seen at the earliest, and only as far as its first particles' weight
 allows. Lenser and Veloso's sensor resetting draws the new hypotheses from the reading being incorporated.
 
-:class:`ReacquisitionSeeds` keeps the fixed share after the resampling and adds, on a step whose measurements hold
-nothing within ``seed_gate`` of the predicted cloud's mean (the cloud has no support in this heat map: the ball it
-followed is not where it predicts, or it never had one), the same share drawn at this step's measurements after the
-prediction and before the weighting, so that the step that first shows the ball weighs particles on it. While the
-cloud has support nothing is seeded before the weighting, so a ball that is followed is filtered as with
-``MeasurementExplorers``, and a false blob elsewhere is seeded no sooner. Before the weighting no particle's support
-is known: the slots taken are drawn at random.
+:class:`ReacquisitionSeeds` keeps the fixed share after the resampling and adds, on a step where nothing lies within
+the gate of the predicted cloud's mean on this heat map's measurements nor on the previous step's (``seed_gate_px``
+of a measurement's pixels, at least ``seed_gate`` metres), the same share drawn at this step's measurements after the
+prediction and before the weighting: the step that first shows a ball the cloud had lost weighs particles on it.
+While the cloud has support nothing is seeded before the weighting, so a ball that is followed is filtered as with
+``MeasurementExplorers`` and a false blob elsewhere is seeded no sooner. The previous heat map counts because a
+single frame in which the detector misses the ball is common (a far, patchy blob): seeded then, the estimate would
+jump to whatever else the frame shows and back on the next. The gate is in pixels because far away one pixel covers
+a long strip of ground along the ray. Before the weighting no particle's support is known: the slots taken are drawn
+at random.
 """
 
 from __future__ import annotations
@@ -22,14 +25,14 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float, PRNGKeyArray
+from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from heatpf_jax.injection.explorers import InjectionContext, refill
 from heatpf_jax.injection.measurement_explorers import MeasurementExplorers, sample_measurements
-from heatpf_jax.injection.support_drop import support_at
+from heatpf_jax.measurements import Measurements
 from heatpf_jax.params import nonnegative, positive, unit_interval
 
-__all__ = ["ReacquisitionParams", "ReacquisitionSeeds", "cloud_mean"]
+__all__ = ["ReacquisitionParams", "ReacquisitionSeeds", "cloud_mean", "has_support"]
 
 
 class ReacquisitionParams(NamedTuple):
@@ -39,12 +42,15 @@ class ReacquisitionParams(NamedTuple):
         measurement_fraction: share of the particles drawn at measurements after each resampling, and before the
             weighting on a step where the cloud has no support.
         measurement_jitter: std of the Gaussian jitter around the drawn measurement, metres.
-        seed_gate: the cloud has support when a valid measurement lies within this distance of its mean, metres.
+        seed_gate: the gate's smallest radius on the ground, metres.
+        seed_gate_px: the gate's radius in the measurement's own pixels (its footprint): far away, where a pixel
+            covers a long strip of ground along the ray, the gate is that long.
     """
 
     measurement_fraction: float = 0.05
     measurement_jitter: float = 0.05
     seed_gate: float = 0.5
+    seed_gate_px: float = 3.0
 
 
 def cloud_mean(xy: Float[Array, "n 2"], log_weights: Float[Array, " n"]) -> Float[Array, "2"]:
@@ -53,10 +59,25 @@ def cloud_mean(xy: Float[Array, "n 2"], log_weights: Float[Array, " n"]) -> Floa
     return jnp.sum(w[:, None] * xy, axis=0)
 
 
+def has_support(
+    measurements: Measurements, mean: Float[Array, "2"], gate: Float[Array, ""], gate_px: Float[Array, ""]
+) -> Bool[Array, ""]:
+    """Whether a valid measurement of positive weight lies within the gate of ``mean``: ``d_j^T G_j^{-1} d_j <= 1``
+    with ``d_j = mean - m_j`` and ``G_j = gate_px^2 F_j F_j^T + gate^2 I`` (``F_j`` the measurement's footprint: the
+    gate is ``gate_px`` of its pixels, at least ``gate`` metres; a measurement without a footprint gets ``gate``)."""
+    f = measurements.footprint
+    gxx = jnp.square(gate_px) * (f[:, 0, 0] ** 2 + f[:, 0, 1] ** 2) + jnp.square(gate)
+    gyy = jnp.square(gate_px) * (f[:, 1, 0] ** 2 + f[:, 1, 1] ** 2) + jnp.square(gate)
+    gxy = jnp.square(gate_px) * (f[:, 0, 0] * f[:, 1, 0] + f[:, 0, 1] * f[:, 1, 1])
+    d = mean[None, :] - measurements.xy
+    q = (gyy * d[:, 0] ** 2 - 2.0 * gxy * d[:, 0] * d[:, 1] + gxx * d[:, 1] ** 2) / (gxx * gyy - gxy * gxy)
+    return jnp.any(measurements.valid & (measurements.weight > 0) & (q <= 1.0))
+
+
 @dataclass(frozen=True)
 class ReacquisitionSeeds(MeasurementExplorers):
     """The fixed share of :class:`MeasurementExplorers` after each resampling, and as much again before the weighting
-    on a step where the predicted cloud has no support (see the module)."""
+    on a step where the predicted cloud has no support on this heat map nor on the previous one (see the module)."""
 
     def default_params(self) -> ReacquisitionParams:
         return ReacquisitionParams()
@@ -66,13 +87,18 @@ class ReacquisitionSeeds(MeasurementExplorers):
             measurement_fraction=unit_interval(high_closed=False, trainable=False),
             measurement_jitter=nonnegative(),
             seed_gate=positive(),
+            seed_gate_px=nonnegative(),
         )
 
     def seed(self, key: PRNGKeyArray, context: InjectionContext, params: ReacquisitionParams) -> InjectionContext:
-        """Before the weighting: the share at this step's measurements where the cloud's mean has none near it."""
+        """Before the weighting: the share at this step's measurements where the cloud's mean has none near it, now and
+        on the previous heat map (``context.previous_measurements``, where known)."""
         buffer = context.measurements
         mean = cloud_mean(context.particles.xy, context.log_weights)
-        lost = support_at(buffer, jax.lax.stop_gradient(mean), params.seed_gate) <= 0.0
+        mean = jax.lax.stop_gradient(mean)
+        lost = ~has_support(buffer, mean, params.seed_gate, params.seed_gate_px)
+        if context.previous_measurements is not None:  # lost on the previous heat map too: not a frame's dropout
+            lost = lost & ~has_support(context.previous_measurements, mean, params.seed_gate, params.seed_gate_px)
         has = jnp.any(buffer.valid & (buffer.weight > 0))
         fraction = jnp.where(has & lost, params.measurement_fraction, 0.0)
         k_slots, k_draw = jax.random.split(key)

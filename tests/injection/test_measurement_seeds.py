@@ -1,6 +1,7 @@
-"""Re-acquisition seeds: before the weighting, the share at this step's measurements only where nothing lies within
-the gate of the predicted cloud's mean (against a NumPy weighted mean and distance check), in random slots; after the
-resampling the fixed share; and a filter whose step weighs the seeds on the heat map that first shows the blob."""
+"""Re-acquisition seeds: the gate against a NumPy brute force; before the weighting, the share at this step's
+measurements only where nothing lies within the gate of the predicted cloud's mean (a NumPy weighted mean) on this
+heat map and the previous one, in random slots; after the resampling the fixed share; and a filter whose step weighs
+the seeds on the heat map that first shows the blob."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
-from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean
+from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support
 from heatpf_jax.motion.random_walk import Particles
 
 
@@ -37,12 +38,41 @@ def test_cloud_mean_is_the_weighted_mean(rng):
                                w @ xy, rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.parametrize(("blob", "seeded"), [((3.0, 2.0), True), ((1.3, 0.1), False)])
-def test_seeds_before_the_weighting_only_where_the_cloud_has_no_support(rng, blob, seeded):
-    """A blob 2.8 m from the cloud's mean: 8 of 40 particles (0.2) moved onto it; 0.32 m away (inside the 0.5 m gate):
-    none moved."""
+def test_the_gate_is_pixels_of_the_footprint_at_least_metres(rng):
+    """``d^T G^-1 d <= 1``, ``G = px^2 F F^T + gate^2 I``, against a NumPy brute force over random footprints."""
+    m = 200
+    xy = rng.uniform(-3.0, 3.0, size=(m, 2))
+    foot = rng.normal(size=(m, 2, 2)) * 0.2
+    weight = rng.uniform(0.0, 1.0, size=m) * (rng.uniform(size=m) < 0.8)
+    valid = rng.uniform(size=m) < 0.8
+    buffer = hp.measurements.Measurements(jnp.asarray(xy, jnp.float32), jnp.asarray(weight, jnp.float32),
+                                          jnp.asarray(valid), jnp.asarray(foot, jnp.float32))
+    for _ in range(30):
+        mean = rng.uniform(-3.0, 3.0, size=2)
+        gate, px = rng.uniform(0.05, 0.4), rng.uniform(0.0, 3.0)
+        g = px**2 * foot @ np.swapaxes(foot, 1, 2) + gate**2 * np.eye(2)
+        d = mean - xy
+        q = np.einsum("mi,mij,mj->m", d, np.linalg.inv(g), d)
+        expected = bool(np.any(valid & (weight > 0) & (q <= 1.0)))
+        if np.any(np.abs(q[valid & (weight > 0)] - 1.0) < 1e-3):
+            continue  # too close to the gate's edge for float32
+        assert bool(has_support(buffer, jnp.asarray(mean, jnp.float32), jnp.float32(gate), jnp.float32(px))) == expected
+
+
+@pytest.mark.parametrize(("blob", "before", "seeded"), [
+    ((3.0, 2.0), None, True),  # nothing near the cloud, no previous buffer known
+    ((3.0, 2.0), (3.0, 2.0), True),  # nothing near it on the previous heat map either
+    ((3.0, 2.0), (1.1, 0.0), False),  # the cloud had support on the previous heat map: a frame's dropout
+    ((1.3, 0.1), None, False),  # a measurement inside the gate now
+])
+def test_seeds_before_the_weighting_only_where_the_cloud_has_no_support(rng, blob, before, seeded):
+    """A blob 2.8 m from the cloud's mean: 8 of 40 particles (0.2) moved onto it, unless the previous heat map had a
+    measurement near the cloud; 0.32 m away (inside the 0.5 m gate): none moved."""
     n = 40
     ctx = _context(rng, n, np.array(blob))
+    if before is not None:
+        previous = _context(rng, n, np.array(before)).measurements
+        ctx = ctx._replace(previous_measurements=previous)
     out = ReacquisitionSeeds().seed(jax.random.key(3), ctx, ReacquisitionParams(measurement_fraction=0.2,
                                                                                 measurement_jitter=0.02))
     moved = np.any(np.asarray(out.particles.xy) != np.asarray(ctx.particles.xy), axis=1)
