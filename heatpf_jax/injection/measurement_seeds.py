@@ -100,9 +100,18 @@ class ReacquisitionSeeds(MeasurementExplorers):
         if context.previous_measurements is not None:  # lost on the previous heat map too: not a frame's dropout
             lost = lost & ~has_support(context.previous_measurements, mean, params.seed_gate, params.seed_gate_px)
         has = jnp.any(buffer.valid & (buffer.weight > 0))
-        fraction = jnp.where(has & lost, params.measurement_fraction, 0.0)
         k_slots, k_draw = jax.random.split(key)
         n = context.log_weights.shape[0]
-        context = context._replace(rank=jax.random.permutation(k_slots, n).astype(context.rank.dtype))
         jitter = params.measurement_jitter
-        return refill(k_draw, context, fraction, lambda k, m: sample_measurements(k, buffer, m, jitter))
+
+        def draw(carry):  # only on a step that seeds: the permutation and the draws cost a tenth of a step
+            particles, log_weights, rank, used = carry
+            ctx = context._replace(particles=particles, log_weights=log_weights, used=used,
+                                   rank=jax.random.permutation(k_slots, n).astype(rank.dtype))
+            out = refill(k_draw, ctx, params.measurement_fraction,
+                         lambda k, m: sample_measurements(k, buffer, m, jitter))
+            return out.particles, out.log_weights, out.rank, out.used
+
+        carry = (context.particles, context.log_weights, context.rank, context.used)
+        particles, log_weights, rank, used = jax.lax.cond(has & lost, draw, lambda c: c, carry)
+        return context._replace(particles=particles, log_weights=log_weights, rank=rank, used=used)
