@@ -30,6 +30,7 @@ from jaxtyping import Array, Bool, Float, PRNGKeyArray
 from heatpf_jax.injection.explorers import InjectionContext, refill
 from heatpf_jax.injection.measurement_explorers import MeasurementExplorers, sample_measurements
 from heatpf_jax.measurements import Measurements
+from heatpf_jax.observation.range_aware import _footprint_quadratic
 from heatpf_jax.params import nonnegative, positive, unit_interval
 
 __all__ = ["ReacquisitionParams", "ReacquisitionSeeds", "cloud_mean", "has_support"]
@@ -65,12 +66,8 @@ def has_support(
     """Whether a valid measurement of positive weight lies within the gate of ``mean``: ``d_j^T G_j^{-1} d_j <= 1``
     with ``d_j = mean - m_j`` and ``G_j = gate_px^2 F_j F_j^T + gate^2 I`` (``F_j`` the measurement's footprint: the
     gate is ``gate_px`` of its pixels, at least ``gate`` metres; a measurement without a footprint gets ``gate``)."""
-    f = measurements.footprint
-    gxx = jnp.square(gate_px) * (f[:, 0, 0] ** 2 + f[:, 0, 1] ** 2) + jnp.square(gate)
-    gyy = jnp.square(gate_px) * (f[:, 1, 0] ** 2 + f[:, 1, 1] ** 2) + jnp.square(gate)
-    gxy = jnp.square(gate_px) * (f[:, 0, 0] * f[:, 1, 0] + f[:, 0, 1] * f[:, 1, 1])
-    d = mean[None, :] - measurements.xy
-    q = (gyy * d[:, 0] ** 2 - 2.0 * gxy * d[:, 0] * d[:, 1] + gxx * d[:, 1] ** 2) / (gxx * gyy - gxy * gxy)
+    every = jnp.arange(measurements.xy.shape[0])[None, :]
+    q = _footprint_quadratic(mean[None, :], measurements, every, gate_px, gate)[0]  # the template's own quadratic
     return jnp.any(measurements.valid & (measurements.weight > 0) & (q <= 1.0))
 
 
