@@ -269,13 +269,15 @@ class Filter(NamedTuple):
             return ()
         return tuple(inj.init_state() if hasattr(inj, "init_state") else () for inj in self.injectors)
 
-    def _seed(self, key, state: FilterState, particles, buffer, ego_tracks, dt, params: FilterParams):
+    def _seed(
+        self, key, state: FilterState, particles, buffer, ego_tracks, inputs: StepInputs, params: FilterParams
+    ):
         """Injectors with a ``seed`` method act on the predicted particles before the weighting (re-detection
         seeds); ``(particles, prior log weights)``, unchanged without such injectors."""
         seeders = [inj for inj in self.injectors if hasattr(inj, "seed")]
         if not seeders:
             return particles, state.log_weights
-        recall = self.memory.recall(state.memory, buffer, ego_tracks, dt, params.memory)
+        recall = self.memory.recall(state.memory, buffer, ego_tracks, inputs.dt, params.memory)
         rank = ranks_of(jnp.argsort(-state.log_weights, stable=True))  # rank 0: most support; ties: the lower slot
         context = InjectionContext(
             particles=particles,
@@ -289,6 +291,7 @@ class Filter(NamedTuple):
             memory=state.memory,
             recall=recall,
             previous_measurements=state.buffer,
+            inputs=inputs,
         )
         k_seed = jax.random.fold_in(key, 11)  # a key of its own: the other stages' keys stay those without seeds
         for i, injector in enumerate(seeders):
@@ -337,7 +340,7 @@ class Filter(NamedTuple):
         particles = self.motion.predict(k_motion, state.particles, inputs, params.motion)
         new, source_state = self._measure(state.source, inputs, params.source)
         buffer = self.buffer.update(state.buffer, new, inputs, params.buffer)
-        particles, prior_log_w = self._seed(key, state, particles, buffer, ego.tracks, inputs.dt, params)
+        particles, prior_log_w = self._seed(key, state, particles, buffer, ego.tracks, inputs, params)
 
         unnormalised = prior_log_w + self.observation.log_likelihood(particles.xy, buffer, params.observation)
         transition = transition_log_weight(particles)  # score-form motion only (heatpf_jax.motion.score)

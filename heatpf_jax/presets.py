@@ -163,7 +163,8 @@ class FilterOptions(NamedTuple):
             (:mod:`heatpf_jax.sources.hover`: a blob read as flying at a place where one was read so 0.25-1 s before
             lies on the ground); 0 (default): no such test. 16 for a field with static clutter larger than the ball.
         resetting: how ``heatmap`` and ``extended`` draw explorers at the measurements (sensor resetting): ``"auto"``
-            (the method's own), ``"fixed"`` (a fixed share every step,
+            (the method's own: ``"seeds"`` for ``heatmap``, ``"fixed"`` for ``extended``), ``"fixed"`` (a fixed share
+            every step,
             :class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`) or ``"support"`` (as far as
             the evidence at the estimate has dropped below its recent level, Augmented MCL:
             :class:`~heatpf_jax.injection.support_drop.SupportDropExplorers`) or ``"birth"`` (the fixed share, each
@@ -300,11 +301,12 @@ def heatmap_filter(options: FilterOptions = FilterOptions()) -> Filter:
     (:class:`~heatpf_jax.motion.constant_velocity.ConstantVelocity`) and a range-aware matched filter over the k nearest
     measurements (:class:`~heatpf_jax.observation.range_aware.FootprintTemplate`, each kernel as wide as
     its pixel's ground footprint) instead of eq. (1)'s inverse distance, and explorers drawn from the
-    measurements beside the uniform ones (:class:`~heatpf_jax.injection.measurement_explorers.MeasurementExplorers`);
-    its default params are :func:`heatmap_params`."""
+    measurements beside the uniform ones, and as many again at the heat map that shows a ball back where the cloud
+    predicts none (:class:`~heatpf_jax.injection.measurement_seeds.ReacquisitionSeeds`, ``resetting="seeds"``;
+    ``"fixed"`` draws only the former, the default before); its default params are :func:`heatmap_params`."""
     base = _particle_filter(options, _pixels(options, "lofted"), observation="range_aware")
     return _with_hints(base._replace(motion=_motion(options, "constant_velocity"),
-                                     injectors=(*base.injectors, _resetting(options))))
+                                     injectors=(*base.injectors, _resetting(options, "seeds"))))
 
 
 def heatmap_params(model: Filter) -> FilterParams:

@@ -39,7 +39,7 @@ def test_paper_heatmap_and_extended_are_what_their_names_say():
     assert heat.model.source == hp.sources.LoftedSource() and heat.params.source == hp.sources.LoftedParams()
     assert isinstance(heat.model.motion, hp.motion.ConstantVelocity)
     assert isinstance(heat.model.observation, hp.observation.FootprintTemplate)
-    assert [type(i) for i in heat.model.injectors] == [hp.injection.UniformExplorers, hp.injection.MeasurementExplorers]
+    assert [type(i) for i in heat.model.injectors] == [hp.injection.UniformExplorers, hp.injection.ReacquisitionSeeds]
     assert heat.model._replace(
         source=paper.model.source, motion=paper.model.motion, observation=paper.model.observation,
         injectors=paper.model.injectors,

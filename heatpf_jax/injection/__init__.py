@@ -33,7 +33,14 @@ from heatpf_jax.injection.measurement_explorers import (
     MeasurementParams,
     sample_measurements,
 )
-from heatpf_jax.injection.measurement_seeds import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support
+from heatpf_jax.injection.measurement_seeds import (
+    ReacquisitionParams,
+    ReacquisitionSeeds,
+    cloud_mean,
+    has_support,
+    in_view,
+    robust_spread,
+)
 from heatpf_jax.injection.memory_hints import (
     HintParams,
     MemoryHints,
@@ -74,6 +81,8 @@ __all__ = [
     "explorer_mask",
     "explorer_slots",
     "has_support",
+    "in_view",
+    "robust_spread",
     "birth_log_weight",
     "cloud_mean",
     "refill",

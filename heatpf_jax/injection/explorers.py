@@ -126,6 +126,9 @@ class InjectionContext(NamedTuple):
         has_heatmap: ``bool []`` whether this step brought a new heat map (``None`` where unknown).
         previous_measurements: before the weighting only (injectors' ``seed``), the previous step's measurement buffer
             (``None`` where unknown).
+        inputs: before the weighting only (injectors' ``seed``), this step's
+            :class:`~heatpf_jax.pieces.StepInputs` (its camera and heat map: what the camera can see; ``None`` where
+            unknown).
     """
 
     particles: Any
@@ -141,6 +144,7 @@ class InjectionContext(NamedTuple):
     recall: Any = None
     has_heatmap: Any = None
     previous_measurements: Any = None
+    inputs: Any = None
 
 
 def take_slots(rank: Int[ArrayLike, " n"], used: Int[ArrayLike, ""], count: Int[ArrayLike, ""]) -> Bool[Array, " n"]:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import heatpf_jax as hp
-from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support
+from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support, robust_spread
 from heatpf_jax.motion.random_walk import Particles
 
 
@@ -36,6 +36,18 @@ def test_cloud_mean_is_the_weighted_mean(rng):
     w = np.exp(log_w) / np.exp(log_w).sum()
     np.testing.assert_allclose(np.asarray(cloud_mean(jnp.asarray(xy, jnp.float32), jnp.asarray(log_w, jnp.float32))),
                                w @ xy, rtol=1e-5, atol=1e-6)
+
+
+def test_robust_spread_is_the_scaled_median_absolute_deviation(rng):
+    """Against NumPy: ``1.4826 sqrt(sum_axis MAD^2)``; a Gaussian cloud's is near its std whatever a few far
+    explorers add."""
+    xy = rng.normal(size=(501, 2)) * np.array([0.3, 0.2])
+    mad = np.median(np.abs(xy - np.median(xy, axis=0)), axis=0)
+    got = float(robust_spread(jnp.asarray(xy, jnp.float32)))
+    np.testing.assert_allclose(got, 1.4826 * np.sqrt(np.sum(mad**2)), rtol=1e-5)
+    assert abs(got - np.hypot(0.3, 0.2)) < 0.05
+    xy[:25] = rng.uniform(-4.0, 4.0, size=(25, 2))  # 5 % explorers anywhere
+    assert abs(float(robust_spread(jnp.asarray(xy, jnp.float32))) - np.hypot(0.3, 0.2)) < 0.06
 
 
 def test_the_gate_is_pixels_of_the_footprint_at_least_metres(rng):
@@ -95,23 +107,42 @@ def test_the_fixed_share_after_the_resampling(rng):
     assert int(out.used) == 10
 
 
-def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(small_sequence):
+@pytest.mark.parametrize(("which", "offset", "on_ball"), [
+    ("seeds", (2.0, 0.0), True),  # a cloud 2 m beyond the ball, in view, and a heat map that shows the ball
+    ("fixed", (2.0, 0.0), False),  # the fixed share after the resampling alone
+    ("seeds", (0.0, 2.0), False),  # a cloud 2 m beside the ball, out of the camera's view: nothing seeded
+    ("wide", (0.0, 2.0), True),  # the same place, a cloud too wide (seed_spread 0.01 m) to predict anything: seeded
+])
+def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(small_sequence, which, offset, on_ball):
     """A cloud 2 m from the ball and a heat map that shows it (eq. 1, 128 particles): with the seeds the step's estimate
-    has moved most of the way to the ball (0.70 m from it); with the fixed share after the resampling alone it is still
-    at the cloud (1.98 m)."""
+    has moved most of the way to the ball (under 1 m from it); with the fixed share after the resampling alone it is
+    still at the cloud (over 1.8 m), and so it is with the seeds where the cloud lies out of the camera's view (a ball
+    there is not expected on the heat map: :func:`in_view` against a NumPy pinhole projection), unless the cloud is
+    wider than ``seed_spread``."""
     from tests.conftest import SMALL_FILTER, step_inputs
 
     inputs = step_inputs(small_sequence, 5)
     ball = np.asarray(small_sequence.ground_truth[5])
-    away = ball + np.array([0.0, 2.0])
-    seeds = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, ReacquisitionSeeds()))
-    fixed = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, hp.injection.MeasurementExplorers()))
-    for model, on_ball in ((seeds, True), (fixed, False)):
-        params = model.default_params()
-        state = model.init(jax.random.key(0), params)
-        n = state.particles.xy.shape[0]
-        cloud = np.random.default_rng(0).normal(size=(n, 2)) * 0.05 + away
-        state = state._replace(particles=state.particles._replace(xy=jnp.asarray(cloud, jnp.float32)))
-        _, info = model.step(jax.random.key(1), state, inputs, params)
-        distance = float(np.linalg.norm(np.asarray(info.mean) - ball))
-        assert (distance < 1.0) if on_ball else (distance > 1.8), distance
+    away = ball + np.array(offset)
+    # The camera sees the cloud's place exactly where a NumPy pinhole projection puts it on the heat map.
+    pose, (fx, fy, cx, cy) = np.asarray(inputs.cam_to_base, np.float64), np.asarray(inputs.intrinsics, np.float64)
+    p = pose[:3, :3].T @ (np.array([*away, float(inputs.plane_height)]) - pose[:3, 3])
+    u, v = fx * p[0] / p[2] + cx, fy * p[1] / p[2] + cy
+    h, w = small_sequence.heatmaps.shape[1:]
+    visible = bool(p[2] > 0 and -0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5)
+    assert visible == (offset == (2.0, 0.0))
+    assert bool(hp.injection.in_view(jnp.asarray(away[None], jnp.float32), inputs)[0]) == visible
+    injector = hp.injection.MeasurementExplorers() if which == "fixed" else ReacquisitionSeeds()
+    model = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, injector))
+    params = model.default_params()
+    if which == "wide":
+        injectors = dict(params.injectors)
+        injectors["measurement"] = injectors["measurement"]._replace(seed_spread=0.01)
+        params = params._replace(injectors=injectors)
+    state = model.init(jax.random.key(0), params)
+    n = state.particles.xy.shape[0]
+    cloud = np.random.default_rng(0).normal(size=(n, 2)) * 0.05 + away
+    state = state._replace(particles=state.particles._replace(xy=jnp.asarray(cloud, jnp.float32)))
+    _, info = model.step(jax.random.key(1), state, inputs, params)
+    distance = float(np.linalg.norm(np.asarray(info.mean) - ball))
+    assert (distance < 1.0) if on_ball else (distance > 1.8), distance
