@@ -15,8 +15,9 @@ median and interquartile range per call and the ratio of medians to ``paper``:
 * ``heatmap (pixel source)``: the same with the paper's source, every pixel where it projects (``--set
   source=pixels``, the ``heatmap`` before the lofted source);
 * ``heatmap (centroid source)``: the same with every pixel at its blob's centroid (``--set source=centroids``);
-* ``heatmap (re-acquisition seeds)``: the defaults with :class:`heatpf_jax.injection.ReacquisitionSeeds` (``--set
-  resetting=seeds``);
+* ``heatmap (fixed share)``: the defaults with :class:`heatpf_jax.injection.MeasurementExplorers` (``--set
+  resetting=fixed``) instead of the re-acquisition seeds (:class:`heatpf_jax.injection.ReacquisitionSeeds`, the
+  default since they were measured here as ``heatmap (re-acquisition seeds)``);
 * ``extended``: Olufs et al.'s combination (mass inertia, cluster-wise resampling, random and
   measurement particles, the dominant mode as output);
 * ``paper / heatmap / extended + memory``: each with the long-term memory (``--set memory=tracks``:
@@ -61,7 +62,7 @@ def models(options: hp.FilterOptions) -> dict[str, tuple[hp.Filter, hp.FilterPar
     # heatmap with every pixel at its blob's centroid (--set source=centroids).
     out["heatmap (centroid source)"] = tuple(hp.build("heatmap", options._replace(source="centroids")))
     out["heatmap (pixel source)"] = tuple(hp.build("heatmap", options._replace(source="pixels")))
-    out["heatmap (re-acquisition seeds)"] = tuple(hp.build("heatmap", options._replace(resetting="seeds")))
+    out["heatmap (fixed share)"] = tuple(hp.build("heatmap", options._replace(resetting="fixed")))
     with_memory = options._replace(memory="tracks")
     for name in ("paper", "heatmap", "extended"):
         out[f"{name} + memory"] = tuple(hp.build(name, with_memory))
