@@ -129,12 +129,15 @@ class ReacquisitionSeeds(MeasurementExplorers):
         lost = ~has_support(buffer, mean, params.seed_gate, params.seed_gate_px)
         if context.previous_measurements is not None:  # lost on the previous heat map too: not a frame's dropout
             lost = lost & ~has_support(context.previous_measurements, mean, params.seed_gate, params.seed_gate_px)
-        if context.inputs is not None:  # where the camera would see the ball the cloud predicts (P >= 1/2), or the
-            w = jax.nn.softmax(context.log_weights)  # cloud is too wide to predict anything
-            seen = jnp.sum(jnp.where(in_view(context.particles.xy, context.inputs), w, 0.0))
-            wide = robust_spread(context.particles.xy) > params.seed_spread
-            lost = lost & jax.lax.stop_gradient((seen >= 0.5) | wide)
         has = jnp.any(buffer.valid & (buffer.weight > 0))
+        if context.inputs is not None:  # where the camera would see the ball the cloud predicts (P >= 1/2), or the
+            inputs, xy, log_weights = context.inputs, context.particles.xy, context.log_weights  # cloud is too wide
+
+            def expected(_):  # to predict anything; only on a step without support (the medians cost a sort)
+                seen = jnp.sum(jnp.where(in_view(xy, inputs), jax.nn.softmax(log_weights), 0.0))
+                return jax.lax.stop_gradient((seen >= 0.5) | (robust_spread(xy) > params.seed_spread))
+
+            lost = jax.lax.cond(has & lost, expected, lambda _: jnp.zeros((), bool), None)
         k_slots, k_draw = jax.random.split(key)
         n = context.log_weights.shape[0]
         jitter = params.measurement_jitter
