@@ -130,10 +130,12 @@ class ReacquisitionSeeds(MeasurementExplorers):
         if context.previous_measurements is not None:  # lost on the previous heat map too: not a frame's dropout
             lost = lost & ~has_support(context.previous_measurements, mean, params.seed_gate, params.seed_gate_px)
         has = jnp.any(buffer.valid & (buffer.weight > 0))
-        if context.inputs is not None:  # where the camera would see the ball the cloud predicts (P >= 1/2), or the
-            inputs, xy, log_weights = context.inputs, context.particles.xy, context.log_weights  # cloud is too wide
+        if context.inputs is not None:
+            # Only where the camera sees at least half of the cloud the ball is expected, or where the cloud is too
+            # wide to predict anything; tested only on a step without support (the medians cost a sort).
+            inputs, xy, log_weights = context.inputs, context.particles.xy, context.log_weights
 
-            def expected(_):  # to predict anything; only on a step without support (the medians cost a sort)
+            def expected(_):
                 seen = jnp.sum(jnp.where(in_view(xy, inputs), jax.nn.softmax(log_weights), 0.0))
                 return jax.lax.stop_gradient((seen >= 0.5) | (robust_spread(xy) > params.seed_spread))
 
