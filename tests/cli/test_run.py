@@ -53,6 +53,7 @@ def _assert_printed_stats(printed: str, burn_in: int, stats: dict) -> None:
     assert found, printed
     np.testing.assert_allclose([float(found[1]), float(found[2])], [stats["mean"], stats["max"]], atol=1.5e-4)
 
+
 def test_bad_input_file_names_field_and_writes_nothing(tmp_path, seq_file, capsys):
     _, seq = seq_file
     bad = tmp_path / "bad.npz"
