@@ -2,9 +2,16 @@
 
 import os
 
-import jax
-import numpy as np
-import pytest
+# Compile without LLVM's optimisation passes: the suite's time is mostly XLA compiling programs it runs a few times
+# (a `heatmap` run compiles in about 0.7 of the time and runs in about 2.5 times as long). Set before JAX starts its
+# backend, and inherited by the xdist workers, the notebooks' kernels and the subprocesses tests start. Speed is
+# measured in benchmarks/, with JAX's defaults.
+if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
+
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 # The tests never write JAX's persistent compilation cache into the user's cache directory.
 os.environ.setdefault("HEATPF_NO_CACHE", "1")
@@ -18,6 +25,70 @@ from heatpf_jax.sim import simulate_standard  # noqa: E402
 # One small filter shared by the filter-level tests, so `run` compiles once per shape.
 SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8)
 SMALL_FILTER = hp.paper_filter(SMALL_OPTIONS)
+
+
+_CACHE_ENV = "JAX_COMPILATION_CACHE_DIR"
+_OWNED_CACHE: list[str] = []
+
+
+def pytest_configure(config):
+    """One JAX compilation cache for the whole run, in a temporary directory removed at its end.
+
+    Set as environment variables by the first process (the controller under ``-n``), so the xdist workers, the
+    notebooks' kernels and the subprocesses that tests start share it: a program that one worker compiled, or one
+    that another test builds from new closures with the same shapes, is loaded instead of compiled again. Never
+    the user's cache directory; a ``JAX_COMPILATION_CACHE_DIR`` already set is left as it is.
+    """
+    import tempfile
+
+    if not os.environ.get("HEATPF_TESTS_SHARED"):  # the executed notebooks, for the worker that checks them
+        path = tempfile.mkdtemp(prefix="heatpf-tests-shared-")
+        _OWNED_CACHE.append(path)
+        os.environ["HEATPF_TESTS_SHARED"] = path
+    if not os.environ.get(_CACHE_ENV):
+        path = tempfile.mkdtemp(prefix="heatpf-tests-jax-")
+        _OWNED_CACHE.append(path)
+        os.environ[_CACHE_ENV] = path
+        os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")
+    jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
+    jax.config.update(
+        "jax_persistent_cache_min_compile_time_secs",
+        float(os.environ.get("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")),
+    )
+
+
+# Tests that compile the same programs (the command line's, tuning's and sweeping's on conftest's small shapes) run in
+# one xdist worker (``--dist loadgroup``, pyproject.toml), which compiles each of them once.
+_GROUPS = {
+    "tests/cli/": "command-line",
+    "tests/test_tuning.py": "command-line",
+    "tests/test_sweep.py": "command-line",
+    "tests/io/test_rosbag_import.py": "command-line",
+}
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the groups
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        for prefix, group in _GROUPS.items():
+            if item.nodeid.startswith(prefix):
+                item.add_marker(pytest.mark.xdist_group(group))
+                break
+
+
+def pytest_sessionfinish(session):
+    """The worker that executes the notebooks stays until they are published (tests/notebook_runs.py)."""
+    if not session.config.option.collectonly:
+        from tests.notebook_runs import wait
+
+        wait()
+
+
+def pytest_unconfigure(config):
+    import shutil
+
+    for path in _OWNED_CACHE:
+        shutil.rmtree(path, ignore_errors=True)
 
 
 @pytest.hookimpl(tryfirst=True)

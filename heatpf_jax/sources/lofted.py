@@ -354,8 +354,8 @@ def blob_sizes(
     uv = jnp.asarray(start, jnp.float32)
     std = jnp.zeros(uv.shape[0], jnp.float32)
     peak = jnp.zeros(uv.shape[0], jnp.float32)
-    for _ in range(int(iterations)):
-        uv, std, peak = measure(uv, std)
+    # One loop body, not ``iterations`` copies of it: the same numbers, a smaller program to compile.
+    uv, std, peak = lax.fori_loop(0, int(iterations), lambda _, carry: measure(carry[0], carry[1]), (uv, std, peak))
     ground = ball_radius_px(uv, intrinsics, cam_to_base, plane_height)
     return BlobSizes(uv=uv, std_px=std, peak=peak, ground_radius_px=ground)
 
