@@ -27,21 +27,34 @@ SMALL_OPTIONS = hp.FilterOptions(num_particles=128, max_measurements=128, k_max=
 SMALL_FILTER = hp.paper_filter(SMALL_OPTIONS)
 
 
-_OWNED_DIRS: list[str] = []
+_CACHE_ENV = "JAX_COMPILATION_CACHE_DIR"
+_OWNED_CACHE: list[str] = []
 
 
 def pytest_configure(config):
-    """The run's shared directory (``$HEATPF_TESTS_SHARED``), made by the first process (the controller under
-    ``-n``) and inherited by the xdist workers: the worker that executes the notebooks publishes them there for the
-    worker that checks them (tests/notebook_runs.py). Removed at the end of the run."""
+    """One JAX compilation cache for the whole run, in a temporary directory removed at its end.
+
+    Set as environment variables by the first process (the controller under ``-n``), so the xdist workers, the
+    notebooks' kernels and the subprocesses that tests start share it: a program that one worker compiled, or one
+    that another test builds from new closures with the same shapes, is loaded instead of compiled again. Never
+    the user's cache directory; a ``JAX_COMPILATION_CACHE_DIR`` already set is left as it is.
+    """
     import tempfile
 
-    from tests.notebook_runs import SHARED_ENV
-
-    if not os.environ.get(SHARED_ENV):
+    if not os.environ.get("HEATPF_TESTS_SHARED"):  # the executed notebooks, for the worker that checks them
         path = tempfile.mkdtemp(prefix="heatpf-tests-shared-")
-        _OWNED_DIRS.append(path)
-        os.environ[SHARED_ENV] = path
+        _OWNED_CACHE.append(path)
+        os.environ["HEATPF_TESTS_SHARED"] = path
+    if not os.environ.get(_CACHE_ENV):
+        path = tempfile.mkdtemp(prefix="heatpf-tests-jax-")
+        _OWNED_CACHE.append(path)
+        os.environ[_CACHE_ENV] = path
+        os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")
+    jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
+    jax.config.update(
+        "jax_persistent_cache_min_compile_time_secs",
+        float(os.environ.get("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")),
+    )
 
 
 # Tests that compile the same programs (the command line's, tuning's and sweeping's on conftest's small shapes) run in
@@ -74,7 +87,7 @@ def pytest_sessionfinish(session):
 def pytest_unconfigure(config):
     import shutil
 
-    for path in _OWNED_DIRS:
+    for path in _OWNED_CACHE:
         shutil.rmtree(path, ignore_errors=True)
 
 
