@@ -86,7 +86,7 @@ def standing_ball():
     intr = np.array([143.0, 143.0, 99.5, 74.5]) / np.array([4, 4, 4, 4]) - np.array([0, 0, 0.375, 0.375])
     pose = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
     ball = np.array([2.0, -0.4])
-    t = 30
+    t = 20  # the shapes of conftest's small_sequence: the filters' programs are those other tests compile
     heat = np.stack([render_heatmap(rng, ball, intr, pose, shape=(37, 50)) for _ in range(t)])
     return hp.Sequence(heatmaps=heat, has_heatmap=np.ones(t, bool), intrinsics=intr,
                        cam_to_base=np.repeat(pose[None], t, 0), odometry=np.zeros((t, 3)),
@@ -99,10 +99,10 @@ def test_baselines_recover_a_standing_ball(standing_ball, method):
     result = hp.run(jax.random.key(0), standing_ball, params, model)
     err = np.linalg.norm(np.asarray(result.info.mean) - standing_ball.ground_truth, axis=1)
     assert np.all(np.isfinite(err))
-    assert err[-10:].mean() < 0.04, (method, err[-10:])  # measured: 0.012, 0.008, 0.021 m
+    assert err[-10:].mean() < 0.04, (method, err[-10:])  # measured, keys 0-4: 0.015-0.022, 0.008, 0.016-0.026 m
     valid = np.asarray(result.info.num_valid)
     if method != "heatmap":
-        assert set(valid.tolist()) <= {0, 1} and valid.sum() >= 25  # one measurement per heat map
+        assert set(valid.tolist()) <= {0, 1} and valid.sum() >= 15  # one measurement per heat map
 
 
 def test_kalman_step_log_likelihood_is_zero_without_a_heat_map(standing_ball):
