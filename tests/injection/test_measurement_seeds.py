@@ -143,6 +143,6 @@ def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(sma
     n = state.particles.xy.shape[0]
     cloud = np.random.default_rng(0).normal(size=(n, 2)) * 0.05 + away
     state = state._replace(particles=state.particles._replace(xy=jnp.asarray(cloud, jnp.float32)))
-    _, info = model.step(jax.random.key(1), state, inputs, params)
+    _, info = jax.jit(model.step)(jax.random.key(1), state, inputs, params)  # one compilation, not one per operation
     distance = float(np.linalg.norm(np.asarray(info.mean) - ball))
     assert (distance < 1.0) if on_ball else (distance > 1.8), distance
