@@ -5,7 +5,10 @@ import os
 # Compile without LLVM's optimisation passes: the suite's time is mostly XLA compiling programs it runs a few times
 # (a `heatmap` run compiles in about 0.7 of the time and runs in about 2.5 times as long). Set before JAX starts its
 # backend, and inherited by the xdist workers, the notebooks' kernels and the subprocesses tests start. Speed is
-# measured in benchmarks/, with JAX's defaults.
+# measured in benchmarks/, with JAX's defaults. Tried and not kept (session 26): XLA's elemental emitters
+# (``--xla_cpu_use_fusion_emitters=false``) compile faster still with -O0 but computed wrong k-nearest weights
+# (tests/observation/test_kernels.py), and with -O2 tests/test_filter.py and tests/memory/test_tracks.py took 108 s of
+# CPU against 67-71 s with -O0.
 if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
 
