@@ -67,6 +67,7 @@ _GROUPS = {
     "tests/test_tuning.py": "command-line",
     "tests/test_sweep.py": "command-line",
     "tests/io/test_rosbag_import.py": "command-line",
+    "tests/io/test_rosbag_export.py": "command-line",  # `heatpf run --bag` with SMALL_ARGS: test_run.py's program
 }
 
 
