@@ -44,10 +44,12 @@ def pytest_configure(config):
     """
     import tempfile
 
-    if not os.environ.get("HEATPF_TESTS_SHARED"):  # the executed notebooks, for the worker that checks them
+    from tests.notebook_runs import SHARED_ENV
+
+    if not os.environ.get(SHARED_ENV):  # the executed notebooks, for the worker that checks them
         path = tempfile.mkdtemp(prefix="heatpf-tests-shared-")
         _OWNED_CACHE.append(path)
-        os.environ["HEATPF_TESTS_SHARED"] = path
+        os.environ[SHARED_ENV] = path
     if not os.environ.get(_CACHE_ENV):
         path = tempfile.mkdtemp(prefix="heatpf-tests-jax-")
         _OWNED_CACHE.append(path)
