@@ -1,4 +1,4 @@
-"""The detector's blob size, learned from the heat maps themselves: a running median over recent frames.
+"""The detector's blob size, learned from the heat maps themselves: the mode of recent frames' blob sizes.
 
 :class:`~heatpf_jax.sources.lofted.LoftedSource` tells a ball in the air from one on the ground by comparing a blob's
 apparent radius with a ground ball's there. The apparent radius comes from the blob's std, ``rho = s / b``, and
@@ -11,10 +11,12 @@ blob gives the activation-weighted median, over its above-threshold pixels, of
 
     l = log(s / rho_g)            (rho_g: a ground ball's radius at the blob's centroid, pixels)
 
-which is ``log b`` for a ball on the ground (plus the noise of ``s``) and larger for a ball in the air. The estimate
-of ``log b`` is the ``quantile`` of the last ``frames`` such values (a ring buffer, :class:`BlobScaleState`): a
-median over 256 frames (8.5 s at 30 Hz) stays on the ground balls' value through flights of up to half of that, and
-through false blobs that are not in most frames. Before the first blob the prior ``blob_scale`` is used.
+which is ``log b`` for a ball on the ground (plus the noise of ``s``) and larger for a ball in the air. The last
+``frames`` such values are kept (a ring buffer, :class:`BlobScaleState`). Their ``quantile``
+(:func:`blob_scale_estimate`; a median over 256 frames, 8.5 s at 30 Hz) stays on the ground balls' value through
+flights of up to half of that; their half-sample mode (:func:`ground_centre`) and the spread below it
+(:func:`ground_spread`) stay on it through flights that fill most of the recent frames, as at the start of a run.
+Before the first blob the prior ``blob_scale`` is used.
 
 This is the way a camera's exposure or a detector's threshold is set from the data it sees: no calibration
 constant of the detector is needed. Every function here is pure and jittable.
@@ -134,43 +136,60 @@ def blob_scale_spread(state: BlobScaleState) -> Float[Array, ""]:
     return jnp.where(count > 1, 1.4826 * mad, 0.0)
 
 
-def _shorth(state: BlobScaleState) -> Float[Array, ""]:
-    """The midpoint of the shortest interval holding half of the stored values (``inf`` with none stored)."""
+def _half_sample_mode(state: BlobScaleState, min_window: int = 8) -> Float[Array, ""]:
+    """The stored values' mode, robust to a minority or a majority of larger values: the half-sample mode (Bickel
+    and Fruehwirth, 2006). The shortest interval holding half of the values, then the shortest holding half of those,
+    and so on down to a quarter of the values (at least ``min_window``), whose median it returns (``inf`` with none
+    stored). Ground balls' sizes are one tight cluster and flights' are spread over a decade, so the nested
+    intervals close on the ground balls' values even where most recent frames are in flight (the shortest half alone
+    would hold some of the flights' and lie above them). Of intervals as short as the shortest (to float rounding),
+    the one nearest the middle is taken: values without a denser part give their middle, not their lowest part.
+    """
     f = state.log_ratios.shape[0]
-    count = jnp.sum(state.filled)
+    count = jnp.sum(state.filled).astype(jnp.int32)
     values = jnp.sort(jnp.where(state.filled, state.log_ratios, jnp.inf))
-    half = jnp.maximum(count // 2, 1)
     idx = jnp.arange(f)
-    upper = values[jnp.clip(idx + half, 0, f - 1)]
-    length = jnp.where(idx + half < count, upper - values, jnp.inf)
-    i = jnp.argmin(length)
-    return 0.5 * (values[i] + values[jnp.clip(i + half, 0, f - 1)])
+    lo = jnp.zeros((), jnp.int32)
+    n = count
+    smallest = jnp.maximum(count // 4, min_window)
+    for _ in range(max(int(f).bit_length(), 1)):  # each pass halves the window: log2(F) passes reach any size
+        k = jnp.minimum(jnp.maximum((n + 1) // 2, smallest), n)
+        starts = (idx >= lo) & (idx + k <= lo + n)
+        length = jnp.where(starts, values[jnp.clip(idx + k - 1, 0, f - 1)] - values, jnp.inf)
+        shortest = jnp.min(length)
+        tie = starts & (length <= shortest + 1e-6 * (1.0 + jnp.abs(shortest)))
+        middle = lo.astype(jnp.float32) + 0.5 * (n - k).astype(jnp.float32)
+        best = jnp.argmin(jnp.where(tie, jnp.abs(idx.astype(jnp.float32) - middle), jnp.inf)).astype(jnp.int32)
+        lo = jnp.where(jnp.any(starts), best, lo)
+        n = jnp.maximum(k, 1)
+    return 0.5 * (values[jnp.clip(lo + (n - 1) // 2, 0, f - 1)] + values[jnp.clip(lo + n // 2, 0, f - 1)])
 
 
 def ground_centre(state: BlobScaleState, min_count: int = 8) -> tuple[Float[Array, ""], Bool[Array, ""]]:
     """``(centre, has)``: the ground balls' ``log b``, robust to balls in the air (:func:`ground_spread`'s centre,
-    the shorth's midpoint), and whether ``min_count`` values are stored. The median of all frames
+    the stored values' half-sample mode), and whether ``min_count`` values are stored. The median of all frames
     (:func:`blob_scale_estimate`) lies above it by a share of the flights' sizes (up to 0.026 on the development
     replays with heights kept, 0.006 on average over the pieces): a ball read against the median reads that much too
     small."""
     count = jnp.sum(state.filled)
     has = count >= min_count
-    return jnp.where(has, _shorth(state), 0.0), has
+    return jnp.where(has, _half_sample_mode(state), 0.0), has
 
 
 def ground_spread(state: BlobScaleState, min_count: int = 8) -> Float[Array, ""]:
     """The spread of ground balls' values, robust to balls in the air: they only ever make a blob larger.
 
-    The ground balls' centre is the midpoint of the shortest interval holding half of the stored values (the
-    shorth: for values whose majority are ground balls, it lies on their mode, wherever the larger values of balls
-    in the air lie), and their spread ``1.4826`` times the median distance below it of the values below it
+    The ground balls' centre is the stored values' half-sample mode (nested shortest halves, down to 8 values: it
+    lies on the ground balls' tight cluster wherever the larger, widely spread values of balls in the air lie, even
+    where those are most of the recent frames, as at the start of a run in a long flight), and their spread ``1.4826``
+    times the median distance below it of the values below it
     (a half-normal's median is ``0.6745`` stds). A median absolute deviation about the median, as
     :func:`blob_scale_spread` takes, grows with the share of frames in the air (0.055 against 0.040 on a development
     replay with a third of its frames in flights). 0 while fewer than ``min_count`` values are stored.
     """
     f = state.log_ratios.shape[0]
     count = jnp.sum(state.filled)
-    centre = _shorth(state)
+    centre = _half_sample_mode(state)
     below = state.filled & (state.log_ratios < centre)
     n_below = jnp.sum(below)
     dist = jnp.sort(jnp.where(below, centre - state.log_ratios, jnp.inf))

@@ -30,18 +30,19 @@ ground ball's blob at that pixel and grows with the blob's size estimate (``reac
 The size is only as good as what is known of the detector's blob. ``blob_scale`` is a property of the detector (its
 blob's softness, size, saturation and blur), so by default it is learned from the heat maps themselves
 (:mod:`heatpf_jax.sources.blob_scale`): the filter carries the last ``calibration_frames`` frames' blob-size ratios
-(``FilterState.source``) and takes their median, since the ball is on the ground most of the time; ``blob_scale`` is
-then only the prior before the first blob. That median is the size test's reference; a blob's place along its ray is
-read against the ground balls' own centre (:func:`~heatpf_jax.sources.blob_scale.ground_centre`, the mode of the
-recent frames' ratios), which the flights' larger blobs do not pull up: on the development replays with heights kept
-the median lies up to 2.6 % above it (0.6 % on average over the pieces; 0 on the flat ones), and a ball placed by its
-size would lie that much too far along its ray. A detector or camera whose ground balls' sizes scatter widely (the world
-family's, :mod:`heatpf_jax.sim.family`: blob stds of 0.3-1.2 apparent radii, saturated and occluded blobs, false
-blobs twice the ball's size, a calibration error of 1-3 degrees that makes distant balls look too large for their
-projection) has no size that tells a flying ball from a ground one: a blob counts as flying only when its ratio
-also lies ``calibration_sigmas`` robust stds above that median, and while the stds exceed
-``calibration_max_spread``, or while the learned scale lies outside ``[min_blob_scale, max_blob_scale]`` (what
-the frames show is speckle, clutter or large false blobs, not the ball), no blob is placed by its size: every pixel is
+(``FilterState.source``) and takes the ground balls' own centre, the mode of their ratios
+(:func:`~heatpf_jax.sources.blob_scale.ground_centre`), since a ball on the ground shows the detector's blob and a ball
+in the air only ever a larger one; ``blob_scale`` is then only the prior before the first blob, and the recent frames'
+median the reference until eight frames are in. The median lies above the mode by a share of the flights' sizes: on
+the development replays with heights kept up to 2.6 % (0.6 % on average over the pieces; 0 on the flat ones), and
+far more at the start of a run in a long flight, where most recent frames are in the air. A detector or camera whose
+ground balls' sizes scatter widely (the world family's, :mod:`heatpf_jax.sim.family`: blob stds of 0.3-1.2 apparent
+radii, saturated and occluded blobs, false blobs twice the ball's size, a calibration error of 1-3 degrees that makes
+distant balls look too large for their projection) has no size that tells a flying ball from a ground one: a blob
+counts as flying only when its ratio also lies ``calibration_sigmas`` robust stds of the ground balls' ratios
+(:func:`~heatpf_jax.sources.blob_scale.ground_spread`) above their mode, and while the stds exceed
+``calibration_max_spread``, or while the learned scale lies outside ``[min_blob_scale, max_blob_scale]`` (what the
+frames show is speckle, clutter or large false blobs, not the ball), no blob is placed by its size: every pixel is
 measured where it projects, as the paper's source does.
 ``LoftedSource(calibration_frames=0)`` keeps ``blob_scale`` fixed.
 
@@ -144,14 +145,17 @@ class LoftedParams(NamedTuple):
         max_half_px: the largest window half-size, pixels.
         calibration_quantile: with ``LoftedSource.calibration_frames > 0``, the quantile of the recent frames'
             blob-size ratios taken as the detector's ``blob_scale`` (:mod:`heatpf_jax.sources.blob_scale`; 0.5:
-            their median); ``blob_scale`` is then only the prior before the first blob.
+            their median) until eight frames are stored, and for the mean-shift windows' first size; from the eighth
+            frame on, the ground balls' mode (:func:`~heatpf_jax.sources.blob_scale.ground_centre`) is the
+            reference of both size tests. ``blob_scale`` is only the prior before the first blob.
         calibration_sigmas: with calibration, a blob is in the air only if its ratio also lies this many robust
-            stds (:func:`~heatpf_jax.sources.blob_scale.blob_scale_spread`) above the recent frames' median: a
+            stds of the ground balls' ratios (:func:`~heatpf_jax.sources.blob_scale.ground_spread`; before it has
+            its frames, :func:`~heatpf_jax.sources.blob_scale.blob_scale_spread`) above their mode: a
             detector or camera whose ground balls' sizes scatter widely (soft, saturated or occluded blobs, a
             calibration error that grows with range) has no size that tells a flying ball.
-        calibration_max_spread: with calibration, while the recent frames' robust std of ``log`` ratios exceeds
-            this, no blob is placed by its size (the size would place it to worse than about this share of its
-            range): every pixel is measured where it projects, as the paper's source does.
+        calibration_max_spread: with calibration, while the ground balls' robust std of ``log`` ratios (as for
+            ``calibration_sigmas``) exceeds this, no blob is placed by its size (the size would place it to worse
+            than about this share of its range): every pixel is measured where it projects, as the paper's source does.
         min_blob_scale: with calibration, a learned ``blob_scale`` below this is no detector's ball blob (the
             frames' ratios are those of speckle or clutter, which outnumber a distant ball's pixels): no blob is then
             placed by its size. 0.25: a blob std of a quarter of the ball's radius.
@@ -606,14 +610,17 @@ class LoftedSource:
                            blob_scale=scale, reach=params.reach, max_half_px=params.max_half_px,
                            iterations=self.iterations)
         # A blob's size is read against a ground ball's: ``size`` is the detector's blob scale that a ball on the
-        # ground shows. The size test's ``scale`` (a quantile of all recent frames) lies above it by a share of the
-        # flights' sizes; the ground balls' own centre (blob_scale.ground_centre) does not, once enough frames are in.
+        # ground shows, the ground balls' own centre (blob_scale.ground_centre, the mode of the recent frames' ratios)
+        # once enough frames are in. A quantile of all recent frames lies above it by a share of the flights' sizes,
+        # by far more where most recent frames are in flight (a run that starts in a long flight): it is only the
+        # reference before the mode has its frames.
         size = scale
         if calib is not None:  # this frame's ratio joins the estimate before its blobs are judged
             calib = update_blob_scale(calib, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
             scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
             centre, has_centre = ground_centre(calib)
             size = jnp.where(has_centre, jnp.exp(centre), scale)
+            scale = size
         # A small blob's std is measured on a grid of unit pixels, whose variance (1/12 px^2) is of the order of its
         # own: its variance ``s^2`` is uncertain by about 1/12 px^2, its log size ``log s`` by ``1 / (24 s^2)`` beyond
         # the ground balls' spread (0.04 for a distant ball's blob of 1 px std, 0.01 at 2 px), and its size tells a
@@ -623,14 +630,17 @@ class LoftedSource:
         soft = jnp.asarray(False)
         sigma = grid
         if calib is not None:
-            spread = blob_scale_spread(calib)
+            # The ground balls' own spread about their mode (blob_scale.ground_spread; the robust spread of all
+            # recent frames until it has its frames): flights only ever make a blob larger, and with their sizes in
+            # it a run's first seconds in a flight read as a detector too erratic for any size to tell.
+            ground = ground_spread(calib)  # 0 until enough frames are stored: no posterior placement before
+            spread = jnp.where(ground > 0.0, ground, blob_scale_spread(calib))
             min_ratio = jnp.maximum(min_ratio, jnp.exp(params.calibration_sigmas * jnp.hypot(spread, grid)))
             # What the frames show is no detector's ball (speckle, clutter or large false blobs outnumber it), or its
             # sizes scatter too widely: no blob is placed by its size, every pixel is measured as the paper's.
             credible = (spread <= params.calibration_max_spread) & (scale >= params.min_blob_scale) & (
                 scale <= params.max_blob_scale)
             min_ratio = jnp.where(credible, min_ratio, jnp.inf)
-            ground = ground_spread(calib)  # 0 until enough frames are stored: no posterior placement before
             sigma = jnp.hypot(jnp.maximum(ground, _MIN_SPREAD), grid)
             soft = credible & (params.launch_rate > 0.0) & (ground > 0.0)
         ground_px = blobs.ground_radius_px

@@ -147,26 +147,33 @@ def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
 
 
-def _shorth_reference(values: np.ndarray) -> float:
-    """The shorth's midpoint by brute force over every window of half the values."""
+def _half_sample_mode_reference(values: np.ndarray, min_window: int = 8) -> float:
+    """The half-sample mode by brute force: the shortest window of half the values (of equally short ones, the one
+    nearest the middle), then of half of those, down to a quarter of all values (at least ``min_window``); the last
+    window's median."""
     v = np.sort(np.float64(values))
-    half = max(len(v) // 2, 1)
-    starts = np.arange(len(v) - half)
-    i = starts[np.argmin(v[starts + half] - v[starts])]
-    return 0.5 * (v[i] + v[i + half])
+    smallest = max(len(v) // 4, min_window)
+    while True:
+        k = min(max((len(v) + 1) // 2, smallest), len(v))
+        if k == len(v):
+            return float(np.median(v))
+        lengths = np.array([v[i + k - 1] - v[i] for i in range(len(v) - k + 1)])
+        ties = np.flatnonzero(lengths <= lengths.min() + 1e-6 * (1.0 + abs(lengths.min())))
+        i = int(ties[np.argmin(np.abs(ties - 0.5 * (len(v) - k)))])
+        v = v[i:i + k]
 
 
 def _ground_spread_reference(values: np.ndarray) -> float:
-    """The shorth's midpoint, then 1.4826 times the lower median of the distances below it."""
+    """The half-sample mode, then 1.4826 times the lower median of the distances below it."""
     v = np.float64(values)
-    centre = _shorth_reference(v)
+    centre = _half_sample_mode_reference(v)
     below = centre - v[v < centre]
     return 1.4826 * float(np.quantile(below, 0.5, method="lower"))
 
 
 def test_ground_spread_ignores_balls_in_the_air():
     """Ground balls' sizes N(log 0.6, 0.03^2) and a third of the frames in flights (only ever larger): the spread
-    below the shorth's midpoint is the ground balls', the median absolute deviation about the median is not."""
+    below the half-sample mode is the ground balls', the median absolute deviation about the median is not."""
     rng = np.random.default_rng(8)
     ground = np.log(0.6) + 0.03 * rng.standard_normal(170)
     air = np.log(0.6) + rng.exponential(0.4, 86)
@@ -182,13 +189,56 @@ def test_ground_spread_ignores_balls_in_the_air():
     for value in values[:7]:
         few = update_blob_scale(few, value, True)
     assert float(ground_spread(few)) == 0.0  # fewer than 8 values: no spread yet
-    # The ground balls' centre: the shorth's midpoint, on log 0.6 where the median of all frames lies above it.
+    # The ground balls' centre: the half-sample mode, on log 0.6 where the median of all frames lies above it.
     centre, has = ground_centre(state)
     assert bool(has)
-    assert float(centre) == pytest.approx(_shorth_reference(np.float32(values)), abs=1e-5)
+    assert float(centre) == pytest.approx(_half_sample_mode_reference(np.float32(values)), abs=1e-5)
     assert float(centre) == pytest.approx(np.log(0.6), abs=0.01)
     assert float(np.log(blob_scale_estimate(state, 0.6))) > float(centre) + 0.02
     assert not bool(ground_centre(few)[1])
+
+
+def test_ground_centre_holds_when_most_frames_are_in_flight():
+    """A run that starts in a long flight: 13 ground balls' sizes N(log 0.6, 0.026^2) and 27 frames in the air. The
+    shortest half of the 40 values holds flights' values and lies above the ground balls; the half-sample mode stays
+    on them, and the spread below it is theirs (checked against the NumPy brute force)."""
+    rng = np.random.default_rng(15)
+    ground = np.log(0.6) + 0.026 * rng.standard_normal(13)
+    air = np.log(0.6) + rng.exponential(0.5, 27)
+    values = np.float32(rng.permutation(np.concatenate([ground, air])))
+    state = init_blob_scale(256)
+    for value in values:
+        state = update_blob_scale(state, value, True)
+    centre, has = ground_centre(state)
+    assert bool(has)
+    assert float(centre) == pytest.approx(_half_sample_mode_reference(values), abs=1e-5)
+    assert float(centre) == pytest.approx(np.log(0.6), abs=0.03)
+    v = np.sort(np.float64(values))
+    shorth = min((v[i + 20] - v[i], 0.5 * (v[i] + v[i + 20])) for i in range(20))[1]
+    assert shorth > np.log(0.6) + 0.04  # the shortest half alone is pulled up by the flights
+    assert float(ground_spread(state)) == pytest.approx(_ground_spread_reference(values), rel=1e-4)
+    assert float(ground_spread(state)) < 0.06
+
+
+def test_a_run_that_starts_in_a_flight_still_places_a_flying_ball():
+    """22 of the 32 stored frames in a flight (a run that starts with a long one) and 10 ground balls: all values
+    scatter widely about their median, the ground balls' do not about their mode. A ball 0.5 m up is placed by its
+    size; read against the median and its spread, it was left on the plane, 8 m too far."""
+    rng = np.random.default_rng(16)
+    values = np.concatenate([np.log(0.6) + 0.026 * rng.standard_normal(10), np.log(0.6) + rng.exponential(1.0, 22)])
+    scale = CALIBRATED.init_state().scale
+    for value in rng.permutation(values):
+        scale = update_blob_scale(scale, value, True)
+    assert float(blob_scale_spread(scale)) > LoftedParams().calibration_max_spread  # the median's view
+    assert float(ground_spread(scale)) < 0.06
+    state = CALIBRATED.init_state()._replace(scale=scale)
+    pose = _pose(0.6, 15.0)
+    truth = np.array([2.5, 0.0])
+    inputs = _inputs(_sphere_heatmap(rng, np.array([*truth, 0.5]), pose), pose)
+    placed, _ = MEASURE_STATE(inputs, LoftedParams(), state)
+    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    assert np.linalg.norm(_weighted_xy(paper) - truth) > 1.0
+    assert np.linalg.norm(_weighted_xy(placed) - truth) < 0.1 * np.linalg.norm(truth)
 
 
 def test_a_low_ball_after_a_flight_is_placed_by_its_size():
