@@ -169,8 +169,8 @@ def ground_centre(state: BlobScaleState, min_count: int = 8) -> tuple[Float[Arra
     """``(centre, has)``: the ground balls' ``log b``, robust to balls in the air (:func:`ground_spread`'s centre,
     the stored values' half-sample mode), and whether ``min_count`` values are stored. The median of all frames
     (:func:`blob_scale_estimate`) lies above it by a share of the flights' sizes (up to 0.026 on the development
-    replays with heights kept, 0.006 on average over the pieces): a ball read against the median reads that much too
-    small."""
+    replays with heights kept, 0.006 on average over the pieces, against the shortest half's midpoint; far more where
+    most recent frames are in flight): a ball read against the median reads that much too small."""
     count = jnp.sum(state.filled)
     has = count >= min_count
     return jnp.where(has, _half_sample_mode(state), 0.0), has
@@ -179,13 +179,13 @@ def ground_centre(state: BlobScaleState, min_count: int = 8) -> tuple[Float[Arra
 def ground_spread(state: BlobScaleState, min_count: int = 8) -> Float[Array, ""]:
     """The spread of ground balls' values, robust to balls in the air: they only ever make a blob larger.
 
-    The ground balls' centre is the stored values' half-sample mode (nested shortest halves, down to 8 values: it
-    lies on the ground balls' tight cluster wherever the larger, widely spread values of balls in the air lie, even
-    where those are most of the recent frames, as at the start of a run in a long flight), and their spread ``1.4826``
-    times the median distance below it of the values below it
-    (a half-normal's median is ``0.6745`` stds). A median absolute deviation about the median, as
-    :func:`blob_scale_spread` takes, grows with the share of frames in the air (0.055 against 0.040 on a development
-    replay with a third of its frames in flights). 0 while fewer than ``min_count`` values are stored.
+    The ground balls' centre is the stored values' half-sample mode (nested shortest halves, down to a quarter of the
+    values: it lies on the ground balls' tight cluster wherever the larger, widely spread values of balls in the air
+    lie, even where those are most of the recent frames, as at the start of a run in a long flight), and their spread
+    ``1.4826`` times the median distance below it of the values below it (a half-normal's median is ``0.6745``
+    stds). A median absolute deviation about the median, as :func:`blob_scale_spread` takes, grows with the share of
+    frames in the air (0.055 against 0.040 on a development replay with a third of its frames in flights). 0 while
+    fewer than ``min_count`` values are stored.
     """
     f = state.log_ratios.shape[0]
     count = jnp.sum(state.filled)
