@@ -27,6 +27,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 __all__ = [
@@ -149,10 +150,10 @@ def _half_sample_mode(state: BlobScaleState, min_window: int = 8) -> Float[Array
     count = jnp.sum(state.filled).astype(jnp.int32)
     values = jnp.sort(jnp.where(state.filled, state.log_ratios, jnp.inf))
     idx = jnp.arange(f)
-    lo = jnp.zeros((), jnp.int32)
-    n = count
     smallest = jnp.maximum(count // 4, min_window)
-    for _ in range(max(int(f).bit_length(), 1)):  # each pass halves the window: log2(F) passes reach any size
+
+    def halve(_, window):
+        lo, n = window
         k = jnp.minimum(jnp.maximum((n + 1) // 2, smallest), n)
         starts = (idx >= lo) & (idx + k <= lo + n)
         length = jnp.where(starts, values[jnp.clip(idx + k - 1, 0, f - 1)] - values, jnp.inf)
@@ -160,8 +161,10 @@ def _half_sample_mode(state: BlobScaleState, min_window: int = 8) -> Float[Array
         tie = starts & (length <= shortest + 1e-6 * (1.0 + jnp.abs(shortest)))
         middle = lo.astype(jnp.float32) + 0.5 * (n - k).astype(jnp.float32)
         best = jnp.argmin(jnp.where(tie, jnp.abs(idx.astype(jnp.float32) - middle), jnp.inf)).astype(jnp.int32)
-        lo = jnp.where(jnp.any(starts), best, lo)
-        n = jnp.maximum(k, 1)
+        return jnp.where(jnp.any(starts), best, lo), jnp.maximum(k, 1)
+
+    # Each pass halves the window: log2(F) passes reach any size (one loop body: a small program to compile).
+    lo, n = lax.fori_loop(0, max(int(f).bit_length(), 1), halve, (jnp.zeros((), jnp.int32), count))
     return 0.5 * (values[jnp.clip(lo + (n - 1) // 2, 0, f - 1)] + values[jnp.clip(lo + n // 2, 0, f - 1)])
 
 
