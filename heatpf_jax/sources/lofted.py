@@ -609,18 +609,16 @@ class LoftedSource:
         blobs = blob_sizes(heatmap, uv, intrinsics, pose, threshold=params.threshold, plane_height=radius,
                            blob_scale=scale, reach=params.reach, max_half_px=params.max_half_px,
                            iterations=self.iterations)
-        # A blob's size is read against a ground ball's: ``size`` is the detector's blob scale that a ball on the
-        # ground shows, the ground balls' own centre (blob_scale.ground_centre, the mode of the recent frames' ratios)
-        # once enough frames are in. A quantile of all recent frames lies above it by a share of the flights' sizes,
-        # by far more where most recent frames are in flight (a run that starts in a long flight): it is only the
-        # reference before the mode has its frames.
-        size = scale
+        # A blob's size is read against a ground ball's: ``scale`` becomes the detector's blob scale that a ball on
+        # the ground shows, the ground balls' own centre (blob_scale.ground_centre, the mode of the recent frames'
+        # ratios) once enough frames are in. A quantile of all recent frames lies above it by a share of the flights'
+        # sizes, by far more where most recent frames are in flight (a run that starts in a long flight): it is only
+        # the reference before the mode has its frames (and the mean-shift windows' first size above).
         if calib is not None:  # this frame's ratio joins the estimate before its blobs are judged
             calib = update_blob_scale(calib, *frame_log_ratio(blobs.std_px, blobs.ground_radius_px, weight, passes))
-            scale = blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile)
             centre, has_centre = ground_centre(calib)
-            size = jnp.where(has_centre, jnp.exp(centre), scale)
-            scale = size
+            scale = jnp.where(has_centre, jnp.exp(centre),
+                              blob_scale_estimate(calib, params.blob_scale, params.calibration_quantile))
         # A small blob's std is measured on a grid of unit pixels, whose variance (1/12 px^2) is of the order of its
         # own: its variance ``s^2`` is uncertain by about 1/12 px^2, its log size ``log s`` by ``1 / (24 s^2)`` beyond
         # the ground balls' spread (0.04 for a distant ball's blob of 1 px std, 0.01 at 2 px), and its size tells a
@@ -650,7 +648,7 @@ class LoftedSource:
         # ball too large for the ground, by their minor std as what they are. The std by mass is at least the minor
         # one, so only a blob that its mass reads as flying needs the second moments (a frame without one skips them).
         flying = passes & (blobs.std_px / scale > min_ratio * ground_px)
-        flying = flying | (soft & passes & below & (blobs.std_px / size > jnp.exp(sigma) * ground_px))
+        flying = flying | (soft & passes & below & (blobs.std_px / scale > jnp.exp(sigma) * ground_px))
         span = jnp.clip(2.5 * jnp.maximum(blobs.std_px, _MIN_STD_PX), 1.0, params.max_half_px)
         elongation = lax.cond(
             jnp.any(flying),
@@ -659,7 +657,6 @@ class LoftedSource:
         )
         apparent = blobs.std_px / jnp.sqrt(elongation) / scale
         sized_up = flying & (apparent > min_ratio * ground_px)  # above the horizon: ground radius 0
-        apparent = apparent * (scale / size)  # the ball's apparent radius, for its place along the ray
         # Below the hard threshold, the posterior mean of the ball's size ratio (sources.air_prior): a low ball is not
         # left on the plane, a ground ball's size noise moves it little. How likely the ball flies now is carried from
         # frame to frame (LoftedState.flight).
