@@ -84,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error("--repeats: must be a positive integer")
+    known = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{args.base}^{{commit}}"],
+                           capture_output=True)
+    if known.returncode != 0:
+        parser.error(f"--base: {args.base!r} is no commit of this repository")
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import jax
     from bench_step import make_heatmap, pick_threshold

@@ -204,6 +204,9 @@ def main(argv=None) -> int:
     parser.add_argument("--keys", type=int, default=1, help="run every world with the filters' PRNG seeds 0 .. "
                         "KEYS-1 and average (the filters' own randomness: one key's means move by up to 20 %%)")
     args = parser.parse_args(argv)
+    if args.ground_counts and ("replay" not in args.kinds or not {"kept", "flat"} <= set(args.heights.split(","))):
+        parser.error("--ground-counts: needs the replays with the heights kept and flat (--kinds replay --heights "
+                     "kept,flat)")
     seeds = list(parse_seeds(args.seeds, 3))
     methods = args.methods.split(",")
     worlds = []
