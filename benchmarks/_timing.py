@@ -9,7 +9,7 @@ from collections.abc import Callable
 import jax
 import numpy as np
 
-__all__ = ["first_call", "parse_sizes", "positive_int", "stats_ms"]
+__all__ = ["first_call", "interleaved_times", "parse_sizes", "positive_int", "stats_ms"]
 
 
 def positive_int(text: str) -> int:
@@ -40,6 +40,25 @@ def first_call(fn: Callable[[], object]) -> float:
     t0 = time.perf_counter()
     jax.block_until_ready(fn())
     return time.perf_counter() - t0
+
+
+def interleaved_times(
+    calls: dict[str, Callable[[jax.Array], object]], key: jax.Array, repeats: int, warmup: int = 3
+) -> dict[str, np.ndarray]:
+    """Seconds of each call per round, one call of each per round (so that a noisy machine slows them alike).
+
+    Round ``i`` passes ``keys[i]`` of ``jax.random.split(key, warmup + repeats)`` to every call; the first ``warmup``
+    rounds are not timed. Returns ``{name: [repeats] seconds}``.
+    """
+    keys = jax.random.split(key, warmup + repeats)
+    times = {name: [] for name in calls}
+    for i in range(warmup + repeats):
+        for name, call in calls.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(call(keys[i]))
+            if i >= warmup:
+                times[name].append(time.perf_counter() - t0)
+    return {name: np.asarray(t) for name, t in times.items()}
 
 
 def stats_ms(times: np.ndarray) -> tuple[float, float]:

@@ -28,9 +28,8 @@ from pathlib import Path
 if __name__ == "__main__" and "--threads" in sys.argv[1:-1] and sys.argv[sys.argv.index("--threads") + 1] == "1":
     os.environ["PJRT_NPROC"] = "1"
 
-import time
-
 import numpy as np
+from _timing import interleaved_times, positive_int, stats_ms
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE_NAME = "heatpf_base"
@@ -79,16 +78,13 @@ def main(argv: list[str] | None = None) -> int:
                         "comma-separated (e.g. heatmap:source=pixels)")
     parser.add_argument("--particles", type=int, default=500)
     parser.add_argument("--measurements", type=int, default=1024)
-    parser.add_argument("--repeats", type=int, default=200, help="interleaved rounds (default 200)")
-    parser.add_argument("--threads", type=int, default=None, help="1: one XLA thread (PJRT_NPROC=1)")
+    parser.add_argument("--repeats", type=positive_int, default=200, help="interleaved rounds (default 200)")
+    parser.add_argument("--threads", type=positive_int, default=None, help="1: one XLA thread (PJRT_NPROC=1)")
     args = parser.parse_args(argv)
-    if args.repeats < 1:
-        parser.error("--repeats: must be a positive integer")
     known = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{args.base}^{{commit}}"],
                            capture_output=True)
     if known.returncode != 0:
         parser.error(f"--base: {args.base!r} is no commit of this repository")
-    sys.path.insert(0, str(ROOT / "benchmarks"))
     import jax
     from bench_step import make_heatmap, pick_threshold
 
@@ -109,24 +105,15 @@ def main(argv: list[str] | None = None) -> int:
             method, _, fields = spec.partition(":")
             extra = dict(item.split("=", 1) for item in fields.split("+")) if fields else {}
             runs[f"{spec} @ working tree"] = _stepper(head, method, {**options, **extra}, heatmap, threshold)
-        keys = jax.random.split(jax.random.key(1), args.repeats + 5)
-        times = {name: [] for name in runs}
-        for i in range(args.repeats + 5):
-            for name, call in runs.items():
-                t0 = time.perf_counter()
-                jax.block_until_ready(call(keys[i]))
-                if i >= 5:  # warm-up rounds
-                    times[name].append(time.perf_counter() - t0)
+        times = interleaved_times(runs, jax.random.key(1), args.repeats, warmup=5)
     print(f"jax {jax.__version__}, PJRT_NPROC={os.environ.get('PJRT_NPROC', '-')}; {args.particles} particles x "
           f"{args.measurements} measurements; {args.repeats} interleaved rounds")
     print(f"{'step':<44} {'median [ms]':>12} {'IQR [ms]':>9} {'/ base':>7}")
     for name, t in times.items():
-        t = 1e3 * np.asarray(t)
-        q1, q3 = np.percentile(t, [25, 75])
-        method = name.split(":")[0].split(" @ ")[0]
-        base_t = times.get(f"{method} @ {args.base}")
-        ratio = np.median(t) / (1e3 * np.median(base_t)) if base_t else float("nan")
-        print(f"{name:<44} {np.median(t):12.3f} {q3 - q1:9.3f} {ratio:7.2f}")
+        med, iqr = stats_ms(t)
+        base_t = times.get(f"{name.split(':')[0].split(' @ ')[0]} @ {args.base}")
+        ratio = np.median(t) / np.median(base_t) if base_t is not None else float("nan")
+        print(f"{name:<44} {med:12.3f} {iqr:9.3f} {ratio:7.2f}")
     return 0
 
 

@@ -19,12 +19,11 @@ import sys
 if __name__ == "__main__" and "--threads" in sys.argv[1:-1] and sys.argv[sys.argv.index("--threads") + 1] == "1":
     os.environ["PJRT_NPROC"] = "1"
 
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _timing import first_call, positive_int, stats_ms
+from _timing import first_call, interleaved_times, positive_int, stats_ms
 
 import heatpf_jax as hp
 from heatpf_jax import params as P
@@ -80,14 +79,7 @@ def main(argv=None) -> int:
         fn = jax.jit(lambda k, s, f, tr=tracker, p=p: tr.step(k, s, f, p))
         calls[name] = lambda k, fn=fn, s0=s0: fn(k, s0, frame)
     compile_s = {name: first_call(lambda c=call: c(jax.random.key(2))) for name, call in calls.items()}
-    keys = jax.random.split(jax.random.key(3), args.repeats + 3)
-    times = {name: [] for name in calls}
-    for i in range(args.repeats + 3):
-        for name, call in calls.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(call(keys[i]))
-            if i >= 3:
-                times[name].append(time.perf_counter() - t0)
+    times = interleaved_times(calls, jax.random.key(3), args.repeats)
     print(f"jax {jax.__version__}, {jax.devices()[0].platform}, PJRT_NPROC={os.environ.get('PJRT_NPROC', '-')}; "
           f"{shape[1]} x {shape[0]} frame, {args.repeats} interleaved rounds")
     print(f"{'call':<34} {'median [ms]':>12} {'IQR [ms]':>9} {'compile [s]':>12}")

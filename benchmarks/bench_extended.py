@@ -36,12 +36,11 @@ import sys
 if __name__ == "__main__" and "--threads" in sys.argv[1:-1] and sys.argv[sys.argv.index("--threads") + 1] == "1":
     os.environ["PJRT_NPROC"] = "1"
 
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _timing import first_call, positive_int, stats_ms
+from _timing import first_call, interleaved_times, positive_int, stats_ms
 from bench_step import CAMERA, INTRINSICS, PLANE_HEIGHT, make_heatmap, parse_sizes, pick_threshold
 
 import heatpf_jax as hp
@@ -106,14 +105,9 @@ def main(argv: list[str] | None = None) -> None:
             compile_s = first_call(lambda m=model, s=state, p=params: step(m, k1, s, inputs, p))
             state, info = step(model, k1, state, inputs, params)  # a full buffer
             prepared[name] = (model, params, state, compile_s, int(info.num_valid))
-        keys = jax.random.split(jax.random.key(1), args.repeats + 3)
-        times = {name: [] for name in prepared}
-        for i in range(args.repeats + 3):
-            for name, (model, params, state, _, _) in prepared.items():
-                t0 = time.perf_counter()
-                jax.block_until_ready(step(model, keys[i], state, inputs, params))
-                if i >= 3:  # warm-up rounds
-                    times[name].append(time.perf_counter() - t0)
+        calls = {name: (lambda k, m=model, p=params, s=state: step(m, k, s, inputs, p))
+                 for name, (model, params, state, _, _) in prepared.items()}
+        times = interleaved_times(calls, jax.random.key(1), args.repeats)
         base = np.median(times["paper"])
         print(f"\n{num_particles} particles x {max_measurements} measurements")
         print(f"{'step':<36} {'median [ms]':>12} {'IQR [ms]':>9} {'/ paper':>8} {'compile [s]':>12} {'valid':>6}")
