@@ -19,6 +19,7 @@ Two renderers draw the frames of one simulated world (its camera, its ball path)
     python benchmarks/colour_user_box.py                         # seeds 0-2, 200 steps, both renderers
     python benchmarks/colour_user_box.py --seeds 100:103 --renderers numpy --scales 1.25
     python benchmarks/colour_user_box.py --methods heatmap,heatmap:threshold=0.5   # METHOD:NAME=VALUE[+...]
+    python benchmarks/colour_user_box.py --maps outline          # multiplied by the ball's outline (--silhouette)
 
 ``--speed``: the time of ``heatpf colour`` on 200 frames (``standard`` seed 0, a box 25 % larger than the ball)
 from a cold and from a warm compilation cache (a fresh ``HEATPF_CACHE_DIR``, the command run twice in new
@@ -228,7 +229,7 @@ def _plain(seq, t0: int, box):
     return seq._replace(heatmaps=np.clip(np.asarray(heat), 0.0, 1.0).astype(np.float32))
 
 
-def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
+def _image_reference(seq, image: np.ndarray, params, jpeg: bool, silhouette: bool = False):
     """``heatpf colour --reference``: an image found in the frames (a PNG cut out of one, or a JPEG of it) is taken
     as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`), else by itself; with
     ``jpeg`` the image goes through a JPEG file first (quality 90, Pillow)."""
@@ -245,9 +246,10 @@ def _image_reference(seq, image: np.ndarray, params, jpeg: bool):
         image = np.asarray(Image.open(io.BytesIO(buffer.getvalue())).convert("RGB"))
     crop = find_crop(seq.images, image)
     if crop is None:
-        return colour_sequence(seq, reference_image=image, params=params)
+        return colour_sequence(seq, reference_image=image, params=params, silhouette=silhouette)
     h, w = image.shape[:2]
-    return colour_sequence(seq, box=frame_box(crop, (0, 0, w, h)), frame=crop.frame, params=params)
+    return colour_sequence(seq, box=frame_box(crop, (0, 0, w, h)), frame=crop.frame, params=params,
+                           silhouette=silhouette)
 
 
 def reference_frames(seq, info) -> dict[str, int]:
@@ -385,6 +387,9 @@ def main(argv=None) -> int:
     parser.add_argument("--theta", type=float, default=None, help="eq. 3's theta (default: heatpf colour's)")
     parser.add_argument("--window-scale", type=float, default=None,
                         help="the object window's half-size over the ball's radius (default: heatpf colour's)")
+    parser.add_argument("--maps", default="histogram", choices=("histogram", "outline"),
+                        help="heatpf colour's maps (histogram, the default) or those multiplied by the ball's outline "
+                        "(heatpf colour --silhouette)")
     parser.add_argument("--speed", action="store_true", help="time heatpf colour on 200 frames instead")
     parser.add_argument("--repeats", type=int, default=30, help="--speed: calls of one map timed")
     parser.add_argument("--before", default=None, help="--speed: a directory holding another heatpf_jax to time")
@@ -398,6 +403,7 @@ def main(argv=None) -> int:
     params = SCALED_PARAMS if args.theta is None else SCALED_PARAMS._replace(theta=args.theta)
     if args.window_scale is not None:
         params = params._replace(window_scale=args.window_scale)
+    outline = args.maps == "outline"
     rows = []
     start = time.perf_counter()
     for renderer in args.renderers.split(","):
@@ -417,9 +423,10 @@ def main(argv=None) -> int:
                         elif which.endswith(("-image", "-jpeg")):  # the box saved: --reference BOX.png / .jpg
                             x, y, w, h = box
                             colour, ref = _image_reference(seq, seq.images[t0, y:y + h, x:x + w], params,
-                                                           jpeg=which.endswith("-jpeg"))
+                                                           jpeg=which.endswith("-jpeg"), silhouette=outline)
                         else:
-                            colour, ref = colour_sequence(seq, box=box, frame=t0, params=params)
+                            colour, ref = colour_sequence(seq, box=box, frame=t0, params=params,
+                                                          silhouette=outline)
                         errs = {m: filter_error(colour, m, seed, args.keys) for m in methods}
                         rows.append((renderer, seed, which, scale, offset, detector, errs))
                         got = "" if ref is None else f"-> {ref.box} score {ref.score:.3f} "

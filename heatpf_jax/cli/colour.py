@@ -94,6 +94,7 @@ def colour_sequence(
     options=None,
     params=None,
     timings: dict[str, float] | None = None,
+    silhouette: bool = False,
 ):
     """``heatpf colour`` as a function: the sequence with its ``heatmaps`` replaced by colour maps.
 
@@ -115,6 +116,9 @@ def colour_sequence(
             default :data:`~heatpf_jax.colour.reference.SCALED_PARAMS`).
         timings: a dict that receives the seconds of ``"reference"`` (taking it), ``"compile"`` (compiling the
             maps' program, or loading it from JAX's persistent cache) and ``"maps"`` (computing them).
+        silhouette: multiply the histogram maps by the ball's outline (:mod:`heatpf_jax.colour.silhouette`, the
+            reference's ``silhouette`` and ``silhouette_score``; ``heatpf colour --silhouette``); ``False`` (the
+            default) keeps the histogram maps. A reference with no silhouette score (0) keeps them too.
 
     Returns:
         ``(sequence, reference)``: the new sequence (activations in ``[0, 1]``) and the
@@ -151,6 +155,10 @@ def colour_sequence(
         raise ValueError(f"{'--box' if reference_image is None else '--reference'}: the object's colours do not stand "
                          "out from the background around it (its own score is 0); take the box around the object")
     params = params._replace(reference_score=ref.score)
+    outline = None
+    if silhouette and ref.silhouette is not None and ref.silhouette_score > 0.0:
+        params = params._replace(silhouette_score=ref.silhouette_score)
+        outline = ref.silhouette
     # The reference's light: its frame's, or for an image of the object (whose own means are the object's) the
     # input's; every frame is brought under it.
     white = channel_means(image if reference_image is None else seq.images[_spread(seq.num_steps)])
@@ -159,10 +167,10 @@ def colour_sequence(
     top_bins = exact_top_bins(ref.histogram)  # exact: every bin the reference fills
     timings["reference"] = time.perf_counter() - start
     start = time.perf_counter()
-    program = colour_heatmaps.lower(*args, top_bins=top_bins, white=white).compile()
+    program = colour_heatmaps.lower(*args, top_bins=top_bins, white=white, object_probability=outline).compile()
     timings["compile"] = time.perf_counter() - start
     start = time.perf_counter()
-    heat = np.asarray(program(*args, white=white))
+    heat = np.asarray(program(*args, white=white, object_probability=outline))
     timings["maps"] = time.perf_counter() - start
     if not np.all(np.isfinite(heat)):
         raise RuntimeError("the colour likelihood produced a non-finite value; please report this")
@@ -221,7 +229,8 @@ def cmd_colour(args: argparse.Namespace) -> int:
               "reference is taken there, as with --box and --frame")
     timings: dict[str, float] = {}
     colour, ref = colour_sequence(seq, box=box, frame=frame, reference_image=reference_image,
-                                  background=args.background, options=options, params=params, timings=timings)
+                                  background=args.background, options=options, params=params, timings=timings,
+                                  silhouette=args.silhouette)
     save_sequence(out, colour)
     heat = colour.heatmaps
     where = f"frame {frame}" if reference_image is None else str(args.reference)
@@ -230,6 +239,14 @@ def cmd_colour(args: argparse.Namespace) -> int:
     print(f"reference: the object's box {','.join(map(str, ref.box))} in {where} (from the box "
           f"{','.join(map(str, box)) if box else 'the whole image'}); background: {source}; "
           f"{int(np.count_nonzero(np.asarray(ref.histogram)))} bins; its own score {ref.score:.3f} (activation 1)")
+    if not args.silhouette:
+        print("maps: the colour histograms (--silhouette: multiplied by the ball's outline)")
+    elif ref.silhouette_score > 0.0:
+        print(f"maps: the colour histograms multiplied by the ball's outline (--silhouette; the reference's own "
+              f"silhouette score {ref.silhouette_score:.3f})")
+    else:
+        print("maps: the colour histograms alone (the object's outline does not stand out from the background around "
+              "it in the reference: its silhouette score is 0)")
     if ref.score < _LOW_SCORE:
         option = "--box" if reference_image is None else "--reference"
         warnings.warn(f"{option}: the reference's own score is low ({ref.score:.3f}; a ball in its box scores about "
@@ -278,6 +295,9 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
     p.add_argument("--window-waist", type=float, default=1.0, help="the object window's arm width over its length, "
                    "in [0, 1] (default 1: a square; 0.618 with --window-scale 0.851: the largest cross of two "
                    "rectangles inside a round ball)")
+    p.add_argument("--silhouette", action="store_true", help="multiply the colour histograms' maps by the ball's "
+                   "outline (the object probability's disc against its annulus; opt-in: docs/results.md has what it "
+                   "changes)")
     p.add_argument("--smoothing", type=float, default=0.25, help="reference smoothing along the intensity bins, "
                    "for lighting changes (default 0.25)")
     p.add_argument("--chroma-smoothing", type=float, default=0.25, help="reference smoothing along the r' and g' "

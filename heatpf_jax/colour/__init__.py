@@ -1,4 +1,4 @@
-"""Colour heat maps from RGB frames (Olufs 2): colour space, reference histogram, likelihood maps.
+"""Colour heat maps from RGB frames (Olufs 2): colour space, reference histogram, likelihood maps, the ball's outline.
 """
 
 from heatpf_jax.colour.crop import Crop, find_crop, frame_box
@@ -26,6 +26,13 @@ from heatpf_jax.colour.reference import (
     locate_object,
     reference_score,
     ring_histogram,
+)
+from heatpf_jax.colour.silhouette import (
+    disc_means,
+    object_probability,
+    reference_silhouette,
+    silhouette_prior,
+    silhouette_score,
 )
 from heatpf_jax.colour.space import (
     DEFAULT_BINS,
@@ -67,6 +74,7 @@ __all__ = [
     "colour_heatmaps",
     "colour_likelihood",
     "corrected_background_weighted",
+    "disc_means",
     "ellipse_prior",
     "exact_top_bins",
     "expected_radius_px",
@@ -77,10 +85,14 @@ __all__ = [
     "histogram",
     "locate_object",
     "num_bins",
+    "object_probability",
     "patch_histogram",
     "reference_score",
+    "reference_silhouette",
     "rgi_bins",
     "ring_histogram",
+    "silhouette_prior",
+    "silhouette_score",
     "smooth_chromaticity",
     "smooth_intensity",
     "window_coefficient",

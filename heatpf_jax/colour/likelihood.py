@@ -57,6 +57,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Float, UInt8
 
+from heatpf_jax.colour.silhouette import silhouette_score
 from heatpf_jax.colour.space import DEFAULT_BINS, MAX_BOX_HALF, balance, box_counts, rgi_bins
 
 __all__ = [
@@ -103,6 +104,12 @@ class ColourParams(NamedTuple):
             a)``. 1 (the default, and ``heatpf colour``'s) is the square; 0.618 with ``window_scale`` 0.851 is the
             largest such cross inside a round ball's disc (``heatpf colour --window-scale 0.851 --window-waist
             0.618``; docs/results.md has what it changes).
+        silhouette_score: the reference's own silhouette score ``S_ref``
+            (:func:`heatpf_jax.colour.silhouette.reference_silhouette`), used only when the maps are given an
+            ``object_probability``: the map is then ``H * clip(S / S_ref, 0, 1)``, the histogram map ``H``
+            combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`). ``heatpf colour`` sets it.
+        silhouette_outer: the silhouette's annulus, outer radius over the ball's
+            (:func:`~heatpf_jax.colour.silhouette.silhouette_score`).
     """
 
     theta: float = 0.2
@@ -113,6 +120,8 @@ class ColourParams(NamedTuple):
     blob_reach: float = 2.0
     reference_score: float = 1.0
     window_waist: float = 1.0
+    silhouette_score: float = 1.0
+    silhouette_outer: float = 1.5
 
 
 def expected_radius_px(
@@ -341,6 +350,7 @@ def colour_likelihood(
     top_bins: int = 64,
     blob_window: bool = True,
     white: Float[ArrayLike, "3"] | None = None,
+    object_probability: Float[ArrayLike, " m"] | None = None,
 ) -> Float[Array, "h w"]:
     """The colour likelihood map of one frame (eq. 1-3, see the module docstring).
 
@@ -358,15 +368,21 @@ def colour_likelihood(
             the default); ``False``: one pass, every pixel with its own window.
         white: ``[3]`` the channel means of the reference's light: the frame is first brought under it
             (:func:`~heatpf_jax.colour.space.balance`); ``None`` (the default) takes the frame as it is.
+        object_probability: ``[m]`` every bin's probability of showing the object
+            (:func:`heatpf_jax.colour.silhouette.object_probability`, :attr:`Reference.silhouette
+            <heatpf_jax.colour.reference.Reference.silhouette>`): the map is then combined with the ball's
+            outline, ``H * clip(S / params.silhouette_score, 0, 1)`` (:mod:`heatpf_jax.colour.silhouette`,
+            ``S`` at the radius of each response's centroid); ``None`` (the default) keeps the histogram map.
 
     Returns:
         ``float32 [H, W]`` activations in ``[0, 1]``.
     """
     ranks = _reference_ranks(reference, top_bins, min(int(top_bins), _CHUNK))
-    return _frame_map(image, ranks, half_size, params, bins, blob_window, white)
+    return _frame_map(image, ranks, half_size, params, bins, blob_window, white, object_probability)
 
 
-def _frame_map(image, ranks: _Ranks, half_size, params: ColourParams, bins, blob_window: bool, white):
+def _frame_map(image, ranks: _Ranks, half_size, params: ColourParams, bins, blob_window: bool, white,
+               object_probability=None):
     """:func:`colour_likelihood` with the reference's bins already ranked."""
     image = jnp.asarray(image)
     if white is not None:
@@ -376,7 +392,23 @@ def _frame_map(image, ranks: _Ranks, half_size, params: ColourParams, bins, blob
     act = _likelihood(tables, radius, params)
     if blob_window:
         act = _likelihood(tables, blob_half_size(act, radius, params.blob_reach), params)
+    if object_probability is not None:
+        act = _with_silhouette(act, image, radius, jnp.asarray(object_probability, jnp.float32), params, bins)
     return act
+
+
+def _with_silhouette(act, image, radius, object_probability, params: ColourParams, bins):
+    """``act * clip(S / S_ref, 0, 1)`` with ``S`` the silhouette score of each pixel's object probability at
+    the expected radius of its response's centroid (:func:`blob_half_size`)."""
+    probability = object_probability[rgi_bins(image, bins)]
+    at_blob = blob_half_size(act, radius, params.blob_reach)
+    # Only where the histogram map responds: elsewhere the product is 0 whatever S is (the rows summed follow the
+    # largest responding radius, not the image's nearest ground).
+    score = silhouette_score(probability, at_blob, params.silhouette_outer, where=act > 0)
+    fit = jnp.clip(score / params.silhouette_score, 0.0, 1.0)
+    # The product of the two likelihoods, never above the histogram's own value: the outline says where, not
+    # whether (a geometric mean raised a post's weak histogram response where its outline fits).
+    return jnp.where(radius > 0, act * fit, 0.0)
 
 
 @partial(jax.jit, static_argnames=("bins", "top_bins", "blob_window"))
@@ -392,9 +424,10 @@ def colour_heatmaps(
     top_bins: int = 64,
     blob_window: bool = True,
     white: Float[ArrayLike, "3"] | None = None,
+    object_probability: Float[ArrayLike, " m"] | None = None,
 ) -> Float[Array, "t h w"]:
     """:func:`colour_likelihood` of every frame, the window from each frame's camera pose (``lax.map``:
-    one frame's tables in memory at a time); ``white`` as there."""
+    one frame's tables in memory at a time); ``white`` and ``object_probability`` as there."""
     images = jnp.asarray(images)
     shape = images.shape[1:3]
     ranks = _reference_ranks(reference, top_bins, min(int(top_bins), _CHUNK))  # once, not in every frame
@@ -402,6 +435,6 @@ def colour_heatmaps(
     def one(frame):
         image, pose = frame
         radius = expected_radius_px(intrinsics, pose, ball_radius, shape)
-        return _frame_map(image, ranks, radius, params, bins, blob_window, white)
+        return _frame_map(image, ranks, radius, params, bins, blob_window, white, object_probability)
 
     return lax.map(one, (images, jnp.asarray(cam_to_base, jnp.float32)))

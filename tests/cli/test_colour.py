@@ -48,6 +48,27 @@ def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
     assert "--output" in _error(capsys) and out.read_bytes() == before  # never replaced without --force
 
 
+def test_silhouette_multiplies_the_maps_by_the_outline(tmp_path, rgb_file, capsys):
+    """By default the maps are the histograms' (as before the outline existed); ``--silhouette`` multiplies them by
+    the ball's outline, as the library's ``silhouette=True``, and prints the reference's silhouette score."""
+    path, seq = rgb_file
+    outlined, plain = tmp_path / "outlined.npz", tmp_path / "plain.npz"
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(plain)]) == 0
+    assert "maps: the colour histograms (--silhouette: multiplied by the ball's outline)" in capsys.readouterr().out
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "--silhouette", "-o", str(outlined)]) == 0
+    printed = capsys.readouterr().out
+    want, ref = colour_sequence(seq, box=(20, 10, 4, 4), frame=1, silhouette=True)
+    assert ref.silhouette_score > 0.0
+    assert (f"maps: the colour histograms multiplied by the ball's outline (--silhouette; the reference's own "
+            f"silhouette score {ref.silhouette_score:.3f})") in printed
+    got = load_sequence(outlined)
+    np.testing.assert_allclose(got.heatmaps, want.heatmaps, atol=1e-6)
+    histograms = load_sequence(plain).heatmaps
+    assert not np.allclose(got.heatmaps, histograms, atol=1e-3)
+    assert np.all(got.heatmaps <= histograms + 1e-6)  # the outline never raises the histogram's value
+    assert got.settings == {"source": "pixels"}
+
+
 def test_the_window_options_reach_the_maps(tmp_path, rgb_file):
     """``--window-scale`` and ``--window-waist`` (the cross inside a round ball) give the library's maps with those
     numbers, and the cross's maps differ from the square's."""
