@@ -107,7 +107,8 @@ class ColourParams(NamedTuple):
         silhouette_score: the reference's own silhouette score ``S_ref``
             (:func:`heatpf_jax.colour.silhouette.reference_silhouette`), used only when the maps are given an
             ``object_probability``: the map is then ``H * clip(S / S_ref, 0, 1)``, the histogram map ``H``
-            combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`). ``heatpf colour`` sets it.
+            combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`). ``heatpf colour --silhouette`` sets
+            it; at most 1e-6 counts as 1e-6.
         silhouette_outer: the silhouette's annulus, outer radius over the ball's
             (:func:`~heatpf_jax.colour.silhouette.silhouette_score`).
     """
@@ -405,7 +406,7 @@ def _with_silhouette(act, image, radius, object_probability, params: ColourParam
     # Only where the histogram map responds: elsewhere the product is 0 whatever S is (the rows summed follow the
     # largest responding radius, not the image's nearest ground).
     score = silhouette_score(probability, at_blob, params.silhouette_outer, where=act > 0)
-    fit = jnp.clip(score / params.silhouette_score, 0.0, 1.0)
+    fit = jnp.clip(score / jnp.maximum(params.silhouette_score, 1e-6), 0.0, 1.0)  # a score of 0: no NaN
     # The product of the two likelihoods, never above the histogram's own value: the outline says where, not
     # whether (a geometric mean raised a post's weak histogram response where its outline fits).
     return jnp.where(radius > 0, act * fit, 0.0)
