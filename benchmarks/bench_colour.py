@@ -32,8 +32,8 @@ from heatpf_jax.baselines.image_window import Window
 from heatpf_jax.baselines.kalman_mean_shift import KalmanMeanShiftTracker
 from heatpf_jax.baselines.mean_shift import MeanShiftTracker
 from heatpf_jax.colour.likelihood import ColourParams, colour_likelihood, expected_radius_px
-from heatpf_jax.colour.silhouette import object_probability, silhouette_prior
-from heatpf_jax.colour.space import exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
+from heatpf_jax.colour.silhouette import chromaticity_probability, silhouette_prior
+from heatpf_jax.colour.space import DEFAULT_BINS, exact_top_bins, patch_histogram, smooth_chromaticity, smooth_intensity
 from heatpf_jax.sim.scenarios import simulate_with_info
 
 
@@ -55,7 +55,8 @@ def main(argv=None) -> int:
     likelihood_k = jax.jit(colour_likelihood, static_argnames=("top_bins", "blob_window"))
     exact = exact_top_bins(q)  # what `heatpf colour` uses: the reference's non-empty bins, rounded up to 2^n
     # The ball's outline as heatpf colour adds it: its object probabilities against the frame's own colours.
-    probability = object_probability(q, patch_histogram(seq.images[t]), silhouette_prior(), 3.0 * 81)
+    probability = chromaticity_probability(q, patch_histogram(seq.images[t]), silhouette_prior(), 3.0 * 81,
+                                           DEFAULT_BINS)
     outlined = params._replace(silhouette_score=0.5)
     full = jax.jit(lambda f, p: colour_likelihood(f, q, expected_radius_px(intr, p, 0.075, shape), params))
     heat = likelihood(frame, q, radius, params)

@@ -19,7 +19,7 @@ Two renderers draw the frames of one simulated world (its camera, its ball path)
     python benchmarks/colour_user_box.py                         # seeds 0-2, 200 steps, both renderers
     python benchmarks/colour_user_box.py --seeds 100:103 --renderers numpy --scales 1.25
     python benchmarks/colour_user_box.py --methods heatmap,heatmap:threshold=0.5   # METHOD:NAME=VALUE[+...]
-    python benchmarks/colour_user_box.py --maps outline          # multiplied by the ball's outline (--silhouette)
+    python benchmarks/colour_user_box.py --maps histogram        # the histograms alone (--no-silhouette)
 
 ``--speed``: the time of ``heatpf colour`` on 200 frames (``standard`` seed 0, a box 25 % larger than the ball)
 from a cold and from a warm compilation cache (a fresh ``HEATPF_CACHE_DIR``, the command run twice in new
@@ -229,7 +229,7 @@ def _plain(seq, t0: int, box):
     return seq._replace(heatmaps=np.clip(np.asarray(heat), 0.0, 1.0).astype(np.float32))
 
 
-def _image_reference(seq, image: np.ndarray, params, jpeg: bool, silhouette: bool = False):
+def _image_reference(seq, image: np.ndarray, params, jpeg: bool, silhouette: bool = True):
     """``heatpf colour --reference``: an image found in the frames (a PNG cut out of one, or a JPEG of it) is taken
     as its box in its frame, as the command does (:func:`heatpf_jax.colour.crop.find_crop`), else by itself; with
     ``jpeg`` the image goes through a JPEG file first (quality 90, Pillow)."""
@@ -332,9 +332,10 @@ def speed(repeats: int, before: str | None) -> int:
     params = SCALED_PARAMS._replace(reference_score=ref.score)
     white = channel_means(seq.images[0])
     k = exact_top_bins(ref.histogram)
+    params = params._replace(silhouette_score=ref.silhouette_score)  # the outline, as heatpf colour's default
     one = jax.jit(lambda image, pose: colour_likelihood(
         image, ref.histogram, expected_radius_px(seq.intrinsics, pose, seq.ball_radius, seq.heatmaps.shape[1:]),
-        params, top_bins=k, white=white))
+        params, top_bins=k, white=white, object_probability=ref.silhouette))
     frames = [(jax.numpy.asarray(seq.images[t]), jax.numpy.asarray(seq.cam_to_base[t], np.float32))
               for t in range(0, 200, 200 // 10)]
     jax.block_until_ready(one(*frames[0]))
@@ -344,7 +345,8 @@ def speed(repeats: int, before: str | None) -> int:
         jax.block_until_ready(one(*frames[i % len(frames)]))
         times.append(time.perf_counter() - start)
     per_map = float(np.median(times))
-    print(f"one map (200 x 150, {k} bins, two passes, jitted, median of {repeats}): {1000 * per_map:.1f} ms "
+    print(f"one map (200 x 150, {k} bins, two passes and the outline, jitted, median of {repeats}): "
+          f"{1000 * per_map:.1f} ms "
           f"(IQR {1000 * np.subtract(*np.percentile(times, [75, 25])):.1f} ms); 200 maps: {200 * per_map:.2f} s")
     pattern = re.compile(r"in ([\d.]+) s \(including compilation\)(?:: reference ([\d.]+) s, compilation ([\d.]+) s, "
                          r"maps ([\d.]+) s)?")
@@ -387,9 +389,9 @@ def main(argv=None) -> int:
     parser.add_argument("--theta", type=float, default=None, help="eq. 3's theta (default: heatpf colour's)")
     parser.add_argument("--window-scale", type=float, default=None,
                         help="the object window's half-size over the ball's radius (default: heatpf colour's)")
-    parser.add_argument("--maps", default="histogram", choices=("histogram", "outline"),
-                        help="heatpf colour's maps (histogram, the default) or those multiplied by the ball's outline "
-                        "(heatpf colour --silhouette)")
+    parser.add_argument("--maps", default="outline", choices=("histogram", "outline"),
+                        help="heatpf colour's maps (outline, the default: the histograms shaped by the ball's outline) "
+                        "or the histograms alone (histogram: heatpf colour --no-silhouette)")
     parser.add_argument("--speed", action="store_true", help="time heatpf colour on 200 frames instead")
     parser.add_argument("--repeats", type=int, default=30, help="--speed: calls of one map timed")
     parser.add_argument("--before", default=None, help="--speed: a directory holding another heatpf_jax to time")

@@ -94,7 +94,7 @@ def colour_sequence(
     options=None,
     params=None,
     timings: dict[str, float] | None = None,
-    silhouette: bool = False,
+    silhouette: bool = True,
 ):
     """``heatpf colour`` as a function: the sequence with its ``heatmaps`` replaced by colour maps.
 
@@ -116,9 +116,10 @@ def colour_sequence(
             default :data:`~heatpf_jax.colour.reference.SCALED_PARAMS`).
         timings: a dict that receives the seconds of ``"reference"`` (taking it), ``"compile"`` (compiling the
             maps' program, or loading it from JAX's persistent cache) and ``"maps"`` (computing them).
-        silhouette: multiply the histogram maps by the ball's outline (:mod:`heatpf_jax.colour.silhouette`, the
-            reference's ``silhouette`` and ``silhouette_score``; ``heatpf colour --silhouette``); ``False`` (the
-            default) keeps the histogram maps. A reference with no silhouette score (0) keeps them too.
+        silhouette: shape the histogram maps by the ball's outline (:mod:`heatpf_jax.colour.silhouette`, the
+            reference's ``silhouette`` and ``silhouette_score``; the default, as ``heatpf colour``'s); ``False``
+            keeps the histogram maps alone (``heatpf colour --no-silhouette``). A reference with no silhouette
+            score (0) keeps them alone too.
 
     Returns:
         ``(sequence, reference)``: the new sequence (activations in ``[0, 1]``) and the
@@ -240,10 +241,10 @@ def cmd_colour(args: argparse.Namespace) -> int:
           f"{','.join(map(str, box)) if box else 'the whole image'}); background: {source}; "
           f"{int(np.count_nonzero(np.asarray(ref.histogram)))} bins; its own score {ref.score:.3f} (activation 1)")
     if not args.silhouette:
-        print("maps: the colour histograms (--silhouette: multiplied by the ball's outline)")
+        print("maps: the colour histograms alone (--no-silhouette)")
     elif ref.silhouette_score > 0.0:
-        print(f"maps: the colour histograms multiplied by the ball's outline (--silhouette; the reference's own "
-              f"silhouette score {ref.silhouette_score:.3f})")
+        print(f"maps: the colour histograms shaped by the ball's outline (the reference's own silhouette score "
+              f"{ref.silhouette_score:.3f}; --no-silhouette: the histograms alone)")
     else:
         print("maps: the colour histograms alone (the object's outline does not stand out from the background around "
               "it in the reference: its silhouette score is 0)")
@@ -295,9 +296,9 @@ def add_parser(sub, parent: list[argparse.ArgumentParser]) -> argparse.ArgumentP
     p.add_argument("--window-waist", type=float, default=1.0, help="the object window's arm width over its length, "
                    "in [0, 1] (default 1: a square; 0.618 with --window-scale 0.851: the largest cross of two "
                    "rectangles inside a round ball)")
-    p.add_argument("--silhouette", action="store_true", help="multiply the colour histograms' maps by the ball's "
-                   "outline (the object probability's disc against its annulus; opt-in: docs/results.md has what it "
-                   "changes)")
+    p.add_argument("--silhouette", action=argparse.BooleanOptionalAction, default=True,
+                   help="shape the colour histograms' maps by the ball's outline (the object probability's disc "
+                   "against its annulus; the default); --no-silhouette: the histograms alone")
     p.add_argument("--smoothing", type=float, default=0.25, help="reference smoothing along the intensity bins, "
                    "for lighting changes (default 0.25)")
     p.add_argument("--chroma-smoothing", type=float, default=0.25, help="reference smoothing along the r' and g' "

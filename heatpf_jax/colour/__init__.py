@@ -28,11 +28,13 @@ from heatpf_jax.colour.reference import (
     ring_histogram,
 )
 from heatpf_jax.colour.silhouette import (
+    chromaticity_probability,
     disc_means,
     object_probability,
     reference_silhouette,
     silhouette_prior,
     silhouette_score,
+    window_max,
 )
 from heatpf_jax.colour.space import (
     DEFAULT_BINS,
@@ -71,6 +73,7 @@ __all__ = [
     "box_counts",
     "box_reference",
     "channel_means",
+    "chromaticity_probability",
     "colour_heatmaps",
     "colour_likelihood",
     "corrected_background_weighted",
@@ -97,4 +100,5 @@ __all__ = [
     "smooth_intensity",
     "window_coefficient",
     "window_half_sizes",
+    "window_max",
 ]

@@ -57,7 +57,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Float, UInt8
 
-from heatpf_jax.colour.silhouette import silhouette_score
+from heatpf_jax.colour.silhouette import silhouette_score, window_max
 from heatpf_jax.colour.space import DEFAULT_BINS, MAX_BOX_HALF, balance, box_counts, rgi_bins
 
 __all__ = [
@@ -79,6 +79,7 @@ a colour map's blob is as large as the object window that made it, and that wind
 the air by their size (:class:`~heatpf_jax.sources.lofted.LoftedSource`, ``heatmap``'s own) reads its scatter as
 flight; every pixel is measured where it projects instead (``source=pixels``, the paper's source)."""
 
+_OUTLINE_BOUND = 32  # the outline's largest radius in pixels (window_max's table); beyond it, a square of 32
 _CHUNK = 64  # bins per summed-area table (_chunk_tables): 64 bins were the fastest of 16-64 per bin
 
 
@@ -106,7 +107,8 @@ class ColourParams(NamedTuple):
             0.618``; docs/results.md has what it changes).
         silhouette_score: the reference's own silhouette score ``S_ref``
             (:func:`heatpf_jax.colour.silhouette.reference_silhouette`), used only when the maps are given an
-            ``object_probability``: the map is then ``H * clip(S / S_ref, 0, 1)``, the histogram map ``H``
+            ``object_probability``: the map is then ``H * (1 - c + c S+ / S_max)``, ``c = min(S_max / S_ref, 1)``,
+            the histogram map ``H``
             combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`). ``heatpf colour --silhouette`` sets
             it; at most 1e-6 counts as 1e-6.
         silhouette_outer: the silhouette's annulus, outer radius over the ball's
@@ -372,7 +374,7 @@ def colour_likelihood(
         object_probability: ``[m]`` every bin's probability of showing the object
             (:func:`heatpf_jax.colour.silhouette.object_probability`, :attr:`Reference.silhouette
             <heatpf_jax.colour.reference.Reference.silhouette>`): the map is then combined with the ball's
-            outline, ``H * clip(S / params.silhouette_score, 0, 1)`` (:mod:`heatpf_jax.colour.silhouette`,
+            outline, ``H * (1 - c + c S+ / S_max)`` (:mod:`heatpf_jax.colour.silhouette`,
             ``S`` at the radius of each response's centroid); ``None`` (the default) keeps the histogram map.
 
     Returns:
@@ -399,17 +401,22 @@ def _frame_map(image, ranks: _Ranks, half_size, params: ColourParams, bins, blob
 
 
 def _with_silhouette(act, image, radius, object_probability, params: ColourParams, bins):
-    """``act * clip(S / S_ref, 0, 1)`` with ``S`` the silhouette score of each pixel's object probability at
-    the expected radius of its response's centroid (:func:`blob_half_size`)."""
+    """``act * (1 - c + c S+ / S_max)``, ``c = min(S_max / S_ref, 1)``, with ``S`` the silhouette score of each
+    pixel's object probability at the expected radius of its response's centroid (:func:`blob_half_size`) and
+    ``S_max`` the largest ``S`` within that radius (:func:`~heatpf_jax.colour.silhouette.window_max`)."""
     probability = object_probability[rgi_bins(image, bins)]
     at_blob = blob_half_size(act, radius, params.blob_reach)
-    # Only where the histogram map responds: elsewhere the product is 0 whatever S is (the rows summed follow the
-    # largest responding radius, not the image's nearest ground).
-    score = silhouette_score(probability, at_blob, params.silhouette_outer, where=act > 0)
-    fit = jnp.clip(score / jnp.maximum(params.silhouette_score, 1e-6), 0.0, 1.0)  # a score of 0: no NaN
-    # The product of the two likelihoods, never above the histogram's own value: the outline says where, not
-    # whether (a geometric mean raised a post's weak histogram response where its outline fits).
-    return jnp.where(radius > 0, act * fit, 0.0)
+    # Exact scores where the histogram map responds and one blob radius around (S_max looks that far); elsewhere
+    # the product is 0 whatever S is (the rows summed follow the largest responding radius, not the nearest ground).
+    near = window_max(act, 2.0 * at_blob + 1.0, _OUTLINE_BOUND) > 0.0
+    score = jnp.maximum(silhouette_score(probability, at_blob, params.silhouette_outer, where=near), 0.0)
+    best = window_max(score, at_blob, _OUTLINE_BOUND)
+    # The outline's shape, a cone whose peak keeps the histogram's value, weighed by how clearly the outline is seen
+    # against the reference's: a ball in front of a white post or on a line shows little outline, which says
+    # nothing of whether it is there (the shape alone, or S / S_ref, took such a ball below the threshold).
+    clear = jnp.clip(best / jnp.maximum(params.silhouette_score, 1e-6), 0.0, 1.0)
+    shape = 1.0 - clear + clear * score / jnp.maximum(best, 1e-6)
+    return jnp.where(radius > 0, act * shape, 0.0)
 
 
 @partial(jax.jit, static_argnames=("bins", "top_bins", "blob_window"))

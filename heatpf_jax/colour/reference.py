@@ -58,7 +58,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Bool, Float, UInt8
 
 from heatpf_jax.colour.likelihood import ColourParams, window_half_sizes
-from heatpf_jax.colour.silhouette import object_probability, reference_silhouette, silhouette_prior
+from heatpf_jax.colour.silhouette import chromaticity_probability, reference_silhouette, silhouette_prior
 from heatpf_jax.colour.space import (
     DEFAULT_BINS,
     exact_top_bins,
@@ -149,8 +149,8 @@ class Reference(NamedTuple):
         background: ``float32 [m]`` the background's histogram ``o``.
         weights: ``float32 [m]`` the background weights ``v`` (:func:`background_weights`; ones without).
         box: ``(x, y, width, height)`` the object's box the model was taken from (after refinement).
-        silhouette: ``float32 [m]`` every bin's probability of showing the object
-            (:func:`~heatpf_jax.colour.silhouette.object_probability` of ``histogram`` against ``background``,
+        silhouette: ``float32 [m]`` every bin's probability of showing the object, by its chromaticity
+            (:func:`~heatpf_jax.colour.silhouette.chromaticity_probability` of ``histogram`` against ``background``,
             the prior :func:`~heatpf_jax.colour.silhouette.silhouette_prior` of the ring), for the maps'
             ``object_probability``; ``None`` where not taken.
         silhouette_score: the object's own silhouette score in its box
@@ -498,17 +498,18 @@ def box_reference(
         o = ring(box)
     model, target, weights = _model(crop(box), o, options, bins)
     score = _locate(model, crop(box), o, params).score
-    lut, own = _silhouette(model, o, crop(box), box, options, params)
+    lut, own = _silhouette(model, o, crop(box), box, options, params, bins)
     return Reference(histogram=model, score=score, target=target, background=o, weights=weights, box=box,
                      silhouette=lut, silhouette_score=own)
 
 
-def _silhouette(model, background, idx, box, options: ReferenceOptions, params: ColourParams):
-    """The object probability of every bin and the object's own silhouette score in its box (:class:`Reference`):
-    the ring's prior, one of its ``(ring^2 - 1) w h`` pixels as the least background mass, the box's inscribed
-    radius as the object's, the pixels around the box at the background's mean probability."""
+def _silhouette(model, background, idx, box, options: ReferenceOptions, params: ColourParams, bins):
+    """The object probability of every bin (by its chromaticity) and the object's own silhouette score in its box
+    (:class:`Reference`): the ring's prior, one of its ``(ring^2 - 1) w h`` pixels as the least background mass,
+    the box's inscribed radius as the object's, the pixels around the box at the background's mean probability."""
     w, h = box[2], box[3]
-    lut = object_probability(model, background, silhouette_prior(options.ring), (options.ring**2 - 1.0) * w * h)
+    lut = chromaticity_probability(model, background, silhouette_prior(options.ring), (options.ring**2 - 1.0) * w * h,
+                                   bins)
     o = np.asarray(background, np.float64)
     mean = float(np.sum(o * lut) / o.sum()) if o.sum() > 0 else 0.0
     radius = max((min(w, h) - 1) / 2.0, 1.0)

@@ -48,22 +48,28 @@ def test_box_in_a_frame_gives_the_library_heat_maps(tmp_path, rgb_file, capsys):
     assert "--output" in _error(capsys) and out.read_bytes() == before  # never replaced without --force
 
 
-def test_silhouette_multiplies_the_maps_by_the_outline(tmp_path, rgb_file, capsys):
-    """By default the maps are the histograms' (as before the outline existed); ``--silhouette`` multiplies them by
-    the ball's outline, as the library's ``silhouette=True``, and prints the reference's silhouette score."""
+def test_the_outline_shapes_the_maps_unless_asked_not_to(tmp_path, rgb_file, capsys):
+    """By default the maps are the histograms' shaped by the ball's outline, as the library's default
+    (``silhouette=True``), and the command prints the reference's silhouette score; ``--silhouette`` says the same;
+    ``--no-silhouette`` gives the histograms alone, as ``silhouette=False``."""
     path, seq = rgb_file
-    outlined, plain = tmp_path / "outlined.npz", tmp_path / "plain.npz"
-    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(plain)]) == 0
-    assert "maps: the colour histograms (--silhouette: multiplied by the ball's outline)" in capsys.readouterr().out
-    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "--silhouette", "-o", str(outlined)]) == 0
+    outlined, plain, named = tmp_path / "outlined.npz", tmp_path / "plain.npz", tmp_path / "named.npz"
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "-o", str(outlined)]) == 0
     printed = capsys.readouterr().out
     want, ref = colour_sequence(seq, box=(20, 10, 4, 4), frame=1, silhouette=True)
     assert ref.silhouette_score > 0.0
-    assert (f"maps: the colour histograms multiplied by the ball's outline (--silhouette; the reference's own "
-            f"silhouette score {ref.silhouette_score:.3f})") in printed
+    assert (f"maps: the colour histograms shaped by the ball's outline (the reference's own silhouette score "
+            f"{ref.silhouette_score:.3f}; --no-silhouette: the histograms alone)") in printed
     got = load_sequence(outlined)
     np.testing.assert_allclose(got.heatmaps, want.heatmaps, atol=1e-6)
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "--silhouette", "-o", str(named)]) == 0
+    capsys.readouterr()
+    np.testing.assert_allclose(load_sequence(named).heatmaps, want.heatmaps, atol=1e-6)
+    assert main(["colour", str(path), "--box", "20,10,4,4", "--frame", "1", "--no-silhouette", "-o", str(plain)]) == 0
+    assert "maps: the colour histograms alone (--no-silhouette)" in capsys.readouterr().out
     histograms = load_sequence(plain).heatmaps
+    alone, _ = colour_sequence(seq, box=(20, 10, 4, 4), frame=1, silhouette=False)
+    np.testing.assert_allclose(histograms, alone.heatmaps, atol=1e-6)
     assert not np.allclose(got.heatmaps, histograms, atol=1e-3)
     assert np.all(got.heatmaps <= histograms + 1e-6)  # the outline never raises the histogram's value
     assert got.settings == {"source": "pixels"}
