@@ -108,9 +108,8 @@ class ColourParams(NamedTuple):
         silhouette_score: the reference's own silhouette score ``S_ref``
             (:func:`heatpf_jax.colour.silhouette.reference_silhouette`), used only when the maps are given an
             ``object_probability``: the map is then ``H * (1 - c + c S+ / S_max)``, ``c = min(S_max / S_ref, 1)``,
-            the histogram map ``H``
-            combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`). ``heatpf colour --silhouette`` sets
-            it; at most 1e-6 counts as 1e-6.
+            the histogram map ``H`` combined with the ball's outline (:mod:`heatpf_jax.colour.silhouette`).
+            ``heatpf colour`` sets it (unless ``--no-silhouette``); at most 1e-6 counts as 1e-6.
         silhouette_outer: the silhouette's annulus, outer radius over the ball's
             (:func:`~heatpf_jax.colour.silhouette.silhouette_score`).
     """
@@ -372,7 +371,7 @@ def colour_likelihood(
         white: ``[3]`` the channel means of the reference's light: the frame is first brought under it
             (:func:`~heatpf_jax.colour.space.balance`); ``None`` (the default) takes the frame as it is.
         object_probability: ``[m]`` every bin's probability of showing the object
-            (:func:`heatpf_jax.colour.silhouette.object_probability`, :attr:`Reference.silhouette
+            (:func:`heatpf_jax.colour.silhouette.chromaticity_probability`, :attr:`Reference.silhouette
             <heatpf_jax.colour.reference.Reference.silhouette>`): the map is then combined with the ball's
             outline, ``H * (1 - c + c S+ / S_max)`` (:mod:`heatpf_jax.colour.silhouette`,
             ``S`` at the radius of each response's centroid); ``None`` (the default) keeps the histogram map.
@@ -406,14 +405,14 @@ def _with_silhouette(act, image, radius, object_probability, params: ColourParam
     ``S_max`` the largest ``S`` within that radius (:func:`~heatpf_jax.colour.silhouette.window_max`)."""
     probability = object_probability[rgi_bins(image, bins)]
     at_blob = blob_half_size(act, radius, params.blob_reach)
-    # Exact scores where the histogram map responds and one blob radius around (S_max looks that far); elsewhere
+    # Exact scores where the histogram map responds and two blob radii around (S_max looks one radius); elsewhere
     # the product is 0 whatever S is (the rows summed follow the largest responding radius, not the nearest ground).
     near = window_max(act, 2.0 * at_blob + 1.0, _OUTLINE_BOUND) > 0.0
     score = jnp.maximum(silhouette_score(probability, at_blob, params.silhouette_outer, where=near), 0.0)
     best = window_max(score, at_blob, _OUTLINE_BOUND)
     # The outline's shape, a cone whose peak keeps the histogram's value, weighed by how clearly the outline is seen
     # against the reference's: a ball in front of a white post or on a line shows little outline, which says
-    # nothing of whether it is there (the shape alone, or S / S_ref, took such a ball below the threshold).
+    # nothing of whether it is there (S+ / max(S_max, S_ref) took such a ball below the threshold).
     clear = jnp.clip(best / jnp.maximum(params.silhouette_score, 1e-6), 0.0, 1.0)
     shape = 1.0 - clear + clear * score / jnp.maximum(best, 1e-6)
     return jnp.where(radius > 0, act * shape, 0.0)
