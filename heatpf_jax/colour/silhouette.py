@@ -273,9 +273,8 @@ def window_max(
     table = jnp.stack(tables)  # [levels, H', W']
     r = jnp.clip(jnp.round(jnp.asarray(half_size, jnp.float32)), 0, bound).astype(jnp.int32)
     side = 2 * r + 1
-    k = jnp.floor(jnp.log2(side.astype(jnp.float32))).astype(jnp.int32)
-    k = jnp.where((2 ** (k + 1)) <= side, k + 1, jnp.where(2**k > side, k - 1, k))  # float log2 at powers of 2
-    step = 2**k
+    k = 31 - lax.clz(side)  # floor(log2(side)), exact in integers
+    step = jnp.left_shift(1, k)
     v, u = jnp.meshgrid(jnp.arange(h, dtype=jnp.int32), jnp.arange(w, dtype=jnp.int32), indexing="ij")
     y0, x0 = v - r + bound, u - r + bound
     y1, x1 = v + r - step + 1 + bound, u + r - step + 1 + bound
