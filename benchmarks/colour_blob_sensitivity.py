@@ -79,18 +79,16 @@ def main(argv=None) -> int:
         raise SystemExit(str(err)) from None
     cones = _cones(args.cones)
     methods = ("heatmap", "extended")
-    rows = {"detector-like maps": {m: [] for m in methods}}
-    for peak, scale, jitter in cones:
-        rows[f"cone peak {peak:g}, radius {scale:g} r, jitter {jitter:g} px"] = {m: [] for m in methods}
+    names = [f"cone peak {peak:g}, radius {scale:g} r, jitter {jitter:g} px" for peak, scale, jitter in cones]
+    rows = {name: {m: [] for m in methods} for name in ["detector-like maps", *names]}
     for seed in seeds:
         seq, info = simulate_with_info(args.scenario, seed, num_steps=args.steps)
         for m in methods:
             rows["detector-like maps"][m].append(filter_error(seq, m, seed, args.keys))
         rng = np.random.default_rng([seed, 31])
-        for peak, scale, jitter in cones:
+        for name, (peak, scale, jitter) in zip(names, cones, strict=True):
             maps = cone_maps(seq, info, peak, scale, jitter, rng)
             cone_seq = seq._replace(heatmaps=maps, settings={**(seq.settings or {}), **MAP_SETTINGS})
-            name = f"cone peak {peak:g}, radius {scale:g} r, jitter {jitter:g} px"
             for m in methods:
                 rows[name][m].append(filter_error(cone_seq, m, seed, args.keys))
         print(f"seed {seed} done", file=sys.stderr, flush=True)
