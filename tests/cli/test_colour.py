@@ -170,6 +170,38 @@ def test_a_users_box_at_the_default_threshold(tmp_path, full_size, full_size_hea
     assert np.median(np.where(near, heat_png, 0).max(axis=(1, 2))) > 0.8
 
 
+def test_any_length_is_mapped_by_one_program_in_chunks(full_size, monkeypatch):
+    """``colour_sequence`` maps frames in chunks of one program's size, whatever the input's length (one
+    compilation serves every file of these sizes); a frame's map is the same in whichever chunk and place it falls,
+    and the padding of the last chunk does not reach the maps (a map depends on its frame and the reference alone)."""
+    from heatpf_jax.cli import colour as cli_colour
+    from heatpf_jax.colour import likelihood
+
+    _, seq, _ = full_size
+    lowered = []
+    real = likelihood.colour_heatmaps
+
+    class Spy:
+        def lower(self, images, *args, **kwargs):
+            lowered.append(np.shape(images))
+            return real.lower(images, *args, **kwargs)
+
+    monkeypatch.setattr(likelihood, "colour_heatmaps", Spy())
+    box = _ball_box(seq, 0, 1.3, 0.25)
+    seq = seq.head(9)  # two calls of 8 frames, the second padded with 7 (maps are slow at the tests' -O0)
+    whole, _ = colour_sequence(seq, box=box, frame=0)
+    # Frames 1-2 left out: frames 3-8 move to other places (frame 8 into the first chunk), one call padded with one
+    # frame; frame 0 (the reference's) stays.
+    keep = np.r_[0, 3:9]
+    per_step = ("heatmaps", "has_heatmap", "cam_to_base", "odometry", "ground_truth", "images")
+    shifted, _ = colour_sequence(seq._replace(**{k: getattr(seq, k)[keep] for k in per_step}), box=box, frame=0)
+    assert cli_colour._CHUNK_FRAMES == 8
+    assert lowered == [(8, *seq.images.shape[1:])] * 2
+    assert whole.heatmaps.shape == seq.heatmaps.shape and shifted.heatmaps.shape[0] == len(keep)
+    assert whole.heatmaps[keep].max() > 0.8  # the ball is in these maps
+    np.testing.assert_allclose(shifted.heatmaps, whole.heatmaps[keep], atol=1e-6)
+
+
 def test_a_box_without_the_object_is_warned_about(tmp_path, full_size_head, capsys):
     out = tmp_path / "o.npz"
     assert main(["colour", str(full_size_head), "--box", "20,110,14,14", "--frame", "0", "-o", str(out)]) == 0
