@@ -43,9 +43,9 @@ def pytest_configure(config):
     the user's cache directory; a ``JAX_COMPILATION_CACHE_DIR`` already set is left as it is.
 
     Every program is cached, however quickly it compiled: a single operation run outside ``jit`` (a test calling a
-    piece's function directly) is a program of its own, compiled in about 50 ms on a 2-core machine and loaded in
-    about 5 ms; there are thousands of them. With the threshold at 0.3 s, the suite took 738-786 s (2 cores, ``-n 2``);
-    with none, 655 s (session 34, the same machine).
+    piece's function directly) is a program of its own, compiled in about 47 ms on a 2-core machine and loaded in
+    about 7 ms (lowered to MLIR either way, about 10 ms); there are thousands of them. With the threshold at 0.3 s,
+    the suite took 738-786 s (2 cores, ``-n 2``); with none, 655-680 s (session 34, the same machine).
     """
     import tempfile
 
