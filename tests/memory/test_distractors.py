@@ -27,31 +27,43 @@ from heatpf_jax.memory.update import update_tracks
 from heatpf_jax.motion.random_walk import Particles, RandomWalk
 
 PARAMS = jax.tree.map(jnp.asarray, MemoryParams())
-DT = jnp.float32(0.1)
-EGO = jnp.zeros(3, jnp.float32)
+# NumPy where the jitted functions take them: eager `jnp` (even `jnp.asarray`) compiles a program per shape.
+DT = np.float32(0.1)
+EGO = np.zeros(3, np.float32)
 FRICTION = float(MemoryParams().memory_friction)
 N_BUF = 32
 _update = jax.jit(update_tracks)  # one compilation per shape: 4 slots, 1 candidate, 32 measurements
+# The library's functions through one program each: run eagerly, each of their operations compiles on its own.
+_empty = jax.jit(empty_tracks, static_argnums=0)
+_predict = jax.jit(predict_tracks)
+_costs = jax.jit(gate_costs)
+_lost = jax.jit(lost_tracks)
+_recall = jax.jit(TrackMemory(4).recall)
+_find_blobs = jax.jit(find_blobs, static_argnames="count")
+_redetect = jax.jit(redetect, static_argnames="max_blobs")
+
+
+def _np(tree):
+    """``tree`` in NumPy: the tests look at its fields, where each eager index would compile a program."""
+    return jax.tree.map(np.asarray, tree)
 
 
 def _table(rows, capacity=4) -> TrackTable:
     """A table from ``rows`` of ``dict(mean=(x, y, vx, vy), var=(pos, vel), hits, age, ball, carried, ...)``."""
-    t = empty_tracks(capacity)
+    t = jax.tree.map(np.array, _empty(capacity))  # NumPy: each `.at[].set()` would compile a scatter
     for i, r in enumerate(rows):
         pos_var, vel_var = r.get("var", (0.01, 0.04))
-        t = t._replace(
-            id=t.id.at[i].set(i + 1),
-            valid=t.valid.at[i].set(True),
-            mean=t.mean.at[i].set(jnp.asarray(r["mean"], jnp.float32)),
-            cov=t.cov.at[i].set(jnp.diag(jnp.asarray([pos_var, pos_var, vel_var, vel_var], jnp.float32))),
-            age=t.age.at[i].set(r.get("age", 0.0)),
-            hits=t.hits.at[i].set(r.get("hits", 10)),
-            ball=t.ball.at[i].set(r.get("ball", False)),
-            static=t.static.at[i].set(r.get("static", False)),
-            carried=t.carried.at[i].set(r.get("carried", r.get("hits", 10))),
-            missed=t.missed.at[i].set(r.get("age", 0.0)),
-        )
-    return t._replace(next_id=jnp.int32(len(rows) + 1))
+        t.id[i] = i + 1
+        t.valid[i] = True
+        t.mean[i] = np.asarray(r["mean"], np.float32)
+        t.cov[i] = np.diag(np.asarray([pos_var, pos_var, vel_var, vel_var], np.float32))
+        t.age[i] = r.get("age", 0.0)
+        t.hits[i] = r.get("hits", 10)
+        t.ball[i] = r.get("ball", False)
+        t.static[i] = r.get("static", False)
+        t.carried[i] = r.get("carried", r.get("hits", 10))
+        t.missed[i] = r.get("age", 0.0)
+    return t._replace(next_id=np.int32(len(rows) + 1))
 
 
 def _blobs(*centres, weight=1.0, pixels=8) -> Measurements:
@@ -62,13 +74,13 @@ def _blobs(*centres, weight=1.0, pixels=8) -> Measurements:
     for b, c in enumerate(centres):
         xy[b * pixels : (b + 1) * pixels] = c
         valid[b * pixels : (b + 1) * pixels] = True
-    return Measurements(jnp.asarray(xy), jnp.where(jnp.asarray(valid), weight, 0.0).astype(jnp.float32),
-                        jnp.asarray(valid))
+    # NumPy, with the zero footprint `Measurements` would make in `jnp` (a program compiled per shape).
+    return Measurements(xy, np.where(valid, weight, 0.0).astype(np.float32), valid, np.zeros((N_BUF, 2, 2), np.float32))
 
 
-def _step(tracks, estimate, buffer, observed=True):
-    est = jnp.asarray(estimate, jnp.float32)
-    return _update(tracks, est[None], jnp.array([observed]), DT, EGO, PARAMS, buffer, est)
+def _step(tracks, estimate, buffer, observed=True, params=PARAMS):
+    est = np.asarray(estimate, np.float32)
+    return _np(_update(tracks, est[None], np.array([observed]), DT, EGO, params, buffer, est))
 
 
 def _rolled(x0, v0, t, f=FRICTION):
@@ -85,7 +97,8 @@ def _slot(tracks, track_id):
 def test_rolling_prediction_by_hand():
     tracks = _table([dict(mean=(2.0, 0.0, 1.0, 0.0)), dict(mean=(1.0, 1.0, 0.0, 0.1))])
     for _ in range(10):
-        tracks = predict_tracks(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
+        tracks = _predict(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
+    tracks = _np(tracks)
     x, v = _rolled(2.0, 1.0, 1.0)  # 2.85 m, 0.7 m/s
     np.testing.assert_allclose(tracks.mean[0], [x, 0.0, v, 0.0], atol=1e-5)
     # 0.1 m/s stops within 1/3 s, after 0.1^2 / (2 * 0.3) = 1/60 m.
@@ -107,9 +120,9 @@ def test_a_measurement_outside_the_gate_never_moves_a_track():
     # The gate in sigmas alone would take it; the gate in metres does not.
     lost = dict(mean=(2.0, 0.0, 1.0, 0.0), var=(4.0, 4.0), ball=True, age=1.0)
     far = (x + 0.9, 0.0)
-    predicted = predict_tracks(_table([lost]), DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
+    predicted = _np(_predict(_table([lost]), DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction))
     d2 = 0.9**2 / (float(predicted.cov[0, 0, 0]) + 0.01)
-    assert d2 < 9.0 and not np.isfinite(gate_costs(predicted, jnp.asarray([far], jnp.float32), PARAMS)[0, 0])
+    assert d2 < 9.0 and not np.isfinite(np.asarray(_costs(predicted, np.asarray([far], np.float32), PARAMS))[0, 0])
     tracks = _step(_table([lost]), far, _blobs(far))
     np.testing.assert_allclose(tracks.mean[0], [x, 0.0, v, 0.0], atol=1e-6)
     np.testing.assert_allclose(tracks.mean[1, :2], far, atol=1e-6)
@@ -135,10 +148,10 @@ def test_blobs_and_redetection_against_brute_force(rng):
     footprint = rng.normal(0, 0.01, (N_BUF, 2, 2)) + np.array([[0.02, 0.0], [0.0, 0.08]])
     centres = rng.uniform(1, 3, (5, 2))
     xy = centres[rng.integers(0, 5, N_BUF)] + rng.normal(0, 0.1, (N_BUF, 2))
-    buf = Measurements(jnp.asarray(xy, jnp.float32), jnp.asarray(rng.uniform(0.2, 1.0, N_BUF), jnp.float32),
-                       jnp.asarray(rng.uniform(size=N_BUF) < 0.9), jnp.asarray(footprint, jnp.float32))
-    params = PARAMS._replace(memory_min_support=jnp.float32(0.5))
-    blobs = find_blobs(buf, params, 6)
+    buf = Measurements(np.asarray(xy, np.float32), np.asarray(rng.uniform(0.2, 1.0, N_BUF), np.float32),
+                       rng.uniform(size=N_BUF) < 0.9, np.asarray(footprint, np.float32))
+    params = PARAMS._replace(memory_min_support=np.float32(0.5))
+    blobs = _np(_find_blobs(buf, params, 6))
     w, ok = np.asarray(buf.weight, np.float64), np.asarray(buf.valid)
     free, r = ok.copy(), float(PARAMS.memory_blob_radius)
     for b in range(6):
@@ -153,8 +166,8 @@ def test_blobs_and_redetection_against_brute_force(rng):
             np.testing.assert_allclose(blobs.xy[b], w[near] @ xy[near] / w[near].sum(), atol=1e-5)
         free &= ~near
     assert np.asarray(blobs.valid).sum() >= 3  # not vacuous
-    lost = jnp.array([True, True, False, True])
-    again, centroid = redetect(tracks, lost, buf, params, max_blobs=6)
+    lost = np.array([True, True, False, True])
+    again, centroid = _np(_redetect(tracks, lost, buf, params, max_blobs=6))
     costs = np.array([[_np_cost(tracks, j, blobs.xy[b]) if bool(blobs.valid[b]) else np.inf for j in range(4)]
                       for b in range(6)])
     paired = {}
@@ -187,7 +200,7 @@ def test_a_distractor_opens_its_own_track_and_becomes_static_clutter():
             x, v = _rolled(2.0, 0.5, 0.1 * step)
             np.testing.assert_allclose(tracks.mean[_slot(tracks, 1)], [x, 0.0, v, 0.0], atol=1e-5)
             assert bool(tracks.ball[_slot(tracks, 1)])
-        assert np.asarray(lost_tracks(tracks, PARAMS.memory_confirm)).tolist() == [True, False, False, False]
+        assert np.asarray(_lost(tracks, PARAMS.memory_confirm)).tolist() == [True, False, False, False]
 
 
 def test_the_ball_keeps_its_identity_through_a_gap_among_distractors():
@@ -231,11 +244,11 @@ def test_seeds_refuse_a_blob_inconsistent_with_the_ball_tracks_motion():
     x = 2.85 m. A blob where it was last seen (a ball that stopped, or a distractor there) is 0.85 m behind the
     prediction and re-detects nothing, however wide the track's uncertainty has grown; so is a blob inside its
     gate that a static clutter track explains better. A blob at the prediction is taken and seeded."""
-    memory = TrackMemory(4)
     tracks = _table([dict(mean=(2.0, 0.0, 1.0, 0.0), ball=True, hits=12)])
     for _ in range(9):
-        tracks = predict_tracks(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
-    tracks = tracks._replace(age=tracks.age.at[0].set(0.9), missed=tracks.missed.at[0].set(0.9))
+        tracks = _predict(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
+    tracks = jax.tree.map(np.array, tracks)
+    tracks.age[0] = tracks.missed[0] = 0.9
     x, _ = _rolled(2.0, 1.0, 1.0)
 
     @jax.jit
@@ -244,8 +257,9 @@ def test_seeds_refuse_a_blob_inconsistent_with_the_ball_tracks_motion():
         return RedetectionSeeds().seed(jax.random.key(0), context, SeedParams(0.25, 0.05)).particles.xy
 
     def seeded(table, buffer):
-        recall = memory.recall(table, buffer, EGO, DT, PARAMS)
+        recall = _recall(table, buffer, EGO, DT, PARAMS)
         xy = np.asarray(seeds(table, recall))
+        recall = _np(recall)
         moved = np.any(xy != 50.0, axis=1)
         return recall, moved, xy[moved]
 
@@ -254,8 +268,9 @@ def test_seeds_refuse_a_blob_inconsistent_with_the_ball_tracks_motion():
     clutter = dict(mean=(x - 0.35, 0.1, 0.0, 0.0), var=(0.0004, 0.0004), static=True, hits=20, carried=0)
     with_clutter = _table([dict(mean=(2.0, 0.0, 1.0, 0.0), ball=True, hits=12), clutter])
     for _ in range(9):
-        with_clutter = predict_tracks(with_clutter, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
-    with_clutter = with_clutter._replace(age=with_clutter.age.at[0].set(0.9))
+        with_clutter = _predict(with_clutter, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction)
+    with_clutter = jax.tree.map(np.array, with_clutter)
+    with_clutter.age[0] = 0.9
     recall, moved, _ = seeded(with_clutter, _blobs((x - 0.35, 0.1)))
     assert not bool(recall.redetected[0]) and moved.sum() == 0
     recall, moved, xy = seeded(tracks, _blobs((x + 0.1, 0.05)))
@@ -263,15 +278,21 @@ def test_seeds_refuse_a_blob_inconsistent_with_the_ball_tracks_motion():
     np.testing.assert_allclose(xy.mean(0), [x + 0.1, 0.05], atol=0.01)
 
 
+@jax.jit
+def _hinted(tracks, lost):
+    """The particles after :class:`MemoryHints`: one program, where the eager injector compiles each operation."""
+    out = MemoryHints().inject(jax.random.key(0), _context(tracks=tracks, lost=lost), HintParams(0.1, 0.05))
+    return out.particles.xy
+
+
 def test_hints_go_to_the_ball_track_first():
     """Two lost tracks: a moving one the filter carried on more steps, and the ball's: the one hint goes to
     the ball."""
     tracks = _table([dict(mean=(1.0, -1.0, 0.5, 0.0), hits=40, age=0.5),
                      dict(mean=(3.0, 1.0, 0.5, 0.0), hits=8, age=0.5, ball=True)])
-    lost = lost_tracks(tracks, PARAMS.memory_confirm)
+    lost = _lost(tracks, PARAMS.memory_confirm)
     assert np.asarray(lost).tolist() == [True, True, False, False]
-    out = MemoryHints().inject(jax.random.key(0), _context(tracks=tracks, lost=lost), HintParams(0.1, 0.05))
-    xy = np.asarray(out.particles.xy)
+    xy = np.asarray(_hinted(tracks, lost))
     moved = np.any(xy != 50.0, axis=1)
     assert moved.sum() == 200
     np.testing.assert_allclose(xy[moved].mean(0), [3.0, 1.0], atol=0.02)

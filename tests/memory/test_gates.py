@@ -4,15 +4,18 @@ the place where the ball vanished (also one nearer the camera, where the occlude
 ``memory_lost_turn`` below 90 degrees, beside its line, does not move the lost ball's track, opens a track of its
 own and leaves the ball's flag where it is; a blob on the line ahead does move it (a Kalman update, in NumPy)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heatpf_jax.memory import MemoryParams, TrackMemory, empty_tracks, gate_costs
+from heatpf_jax.memory import MemoryParams
 from heatpf_jax.memory.gates import motion_consistent
-from heatpf_jax.memory.predict import predict_tracks
 
-# The hand-made tables, blobs and the jitted update (one compilation) of the memory's other tests.
-from tests.memory.test_distractors import DT, EGO, PARAMS, _blobs, _table, _update
+# The hand-made tables and blobs of the memory's other tests, and their jitted library functions (one compilation
+# each per shape: run eagerly, each of their operations compiles on its own).
+from tests.memory.test_distractors import DT, EGO, PARAMS, _blobs, _costs, _empty, _np, _predict, _recall, _step, _table
+
+_consistent = jax.jit(motion_consistent)
 
 
 def _np_consistent(mean, age, hits, static, valid, xy, dt, p: MemoryParams):
@@ -45,7 +48,7 @@ def test_motion_consistent_against_numpy(rng):
     the boundaries."""
     refused = 0
     for turn in (np.pi / 2, 0.6, 0.2):
-        params = PARAMS._replace(memory_lost_turn=jnp.float32(turn))
+        params = PARAMS._replace(memory_lost_turn=np.float32(turn))
         ref = MemoryParams(memory_lost_turn=turn)
         for _ in range(3):
             m, n = 6, 40
@@ -55,10 +58,10 @@ def test_motion_consistent_against_numpy(rng):
             static = rng.uniform(size=m) < 0.2
             valid = rng.uniform(size=m) < 0.9
             xy = mean[rng.integers(0, m, n), :2] + rng.normal(0, 0.6, (n, 2))
-            t = empty_tracks(m)._replace(
-                valid=jnp.asarray(valid), mean=jnp.asarray(mean, jnp.float32), age=jnp.asarray(age, jnp.float32),
-                hits=jnp.asarray(hits, jnp.int32), static=jnp.asarray(static))
-            got = np.asarray(motion_consistent(t, jnp.asarray(xy, jnp.float32), params, DT))
+            t = _empty(m)._replace(  # NumPy fields: `jnp.asarray` compiles a program per shape
+                valid=valid, mean=np.asarray(mean, np.float32), age=np.asarray(age, np.float32),
+                hits=np.asarray(hits, np.int32), static=static)
+            got = np.asarray(_consistent(t, np.asarray(xy, np.float32), params, DT))
             mean32 = np.asarray(t.mean)
             want = _np_consistent(mean32, age, hits, static, valid, xy, 0.1, ref)
             # Away from the boundaries: the same verdict for points moved 1 mm either way.
@@ -77,22 +80,21 @@ def _lost_ball():
 
 
 def _predicted(tracks):
-    return predict_tracks(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction,
-                          PARAMS.memory_lost_accel_std)
+    return _np(_predict(tracks, DT, EGO, PARAMS.memory_accel_std, PARAMS.memory_friction,
+                        PARAMS.memory_lost_accel_std))
 
 
 def _refused(blob, params):
     """The lost ball's step with ``blob`` (also the filter's candidate): its track is not moved, keeps its flag,
     and the blob opens a track of its own; nor does the memory's recall re-detect the ball there."""
     pred = _predicted(_lost_ball())
-    est = jnp.asarray(blob, jnp.float32)
-    out = _update(_lost_ball(), est[None], jnp.array([True]), DT, EGO, params, _blobs(blob), est)
+    out = _step(_lost_ball(), blob, _blobs(blob), params=params)
     np.testing.assert_allclose(out.mean[0], pred.mean[0], atol=1e-6)  # untouched: the prediction
     np.testing.assert_allclose(out.age[0], 0.3, atol=1e-6)
     assert bool(out.ball[0]) and not bool(out.found[0])
     assert int(out.id[1]) == 2 and bool(out.valid[1])  # the blob's own track
     np.testing.assert_allclose(out.mean[1], [*blob, 0.0, 0.0], atol=1e-6)
-    recall = TrackMemory(4).recall(_lost_ball(), _blobs(blob), EGO, DT, params)
+    recall = _np(_recall(_lost_ball(), _blobs(blob), EGO, DT, params))
     assert not bool(recall.redetected[0])
 
 
@@ -107,9 +109,9 @@ def test_a_lost_rolling_track_is_not_moved_behind_where_it_vanished():
     x0 = x - (v * 0.3 + 0.5 * 0.3 * 0.09)
     np.testing.assert_allclose(x0, 1.894, atol=1e-3)
     behind, nearer = (x - 0.70, 2.0), (x0 - 0.5, 1.8)
-    points = jnp.asarray([behind, nearer], jnp.float32)
-    assert np.isfinite(np.asarray(gate_costs(pred, points, PARAMS))[:, 0]).all()  # the Gaussian gate takes both
-    assert not np.isfinite(np.asarray(gate_costs(pred, points, PARAMS, DT))[:, 0]).any()
+    points = np.asarray([behind, nearer], np.float32)
+    assert np.isfinite(np.asarray(_costs(pred, points, PARAMS))[:, 0]).all()  # the Gaussian gate takes both
+    assert not np.isfinite(np.asarray(_costs(pred, points, PARAMS, DT))[:, 0]).any()
     for blob in (behind, nearer):
         _refused(blob, PARAMS)
 
@@ -120,12 +122,12 @@ def test_a_narrower_cone_refuses_a_blob_beside_the_line():
     (0.55 > 0.42 + tan(0.5) 0.1545 = 0.51 m)."""
     pred = _predicted(_lost_ball())
     beside = (float(pred.mean[0, 0]), 2.0 - 0.55)
-    narrow = PARAMS._replace(memory_lost_turn=jnp.float32(0.5))
-    point = jnp.asarray([beside], jnp.float32)
-    assert bool(motion_consistent(pred, point, PARAMS, DT)[0, 0])
-    assert not bool(motion_consistent(pred, point, narrow, DT)[0, 0])
-    est = jnp.asarray(beside, jnp.float32)
-    out = _update(_lost_ball(), est[None], jnp.array([True]), DT, EGO, PARAMS, _blobs(beside), est)
+    # Weakly typed as PARAMS's numbers (the same float32 0.5): the jitted update and recall compile once for both.
+    narrow = PARAMS._replace(memory_lost_turn=jnp.asarray(0.5))
+    point = np.asarray([beside], np.float32)
+    assert bool(np.asarray(_consistent(pred, point, PARAMS, DT))[0, 0])
+    assert not bool(np.asarray(_consistent(pred, point, narrow, DT))[0, 0])
+    out = _step(_lost_ball(), beside, _blobs(beside))
     assert float(out.age[0]) == 0.0 and bool(out.found[0])  # the default cone: taken
     _refused(beside, narrow)
 
@@ -135,9 +137,8 @@ def test_a_blob_on_the_line_ahead_moves_the_lost_track():
     Kalman update, NumPy float64), its age returns to 0; the memory's recall re-detects it there too."""
     pred = _predicted(_lost_ball())
     blob = (float(pred.mean[0, 0]) + 0.15, 2.05)
-    est = jnp.asarray(blob, jnp.float32)
-    assert bool(motion_consistent(pred, est[None], PARAMS, DT)[0, 0])
-    out = _update(_lost_ball(), est[None], jnp.array([True]), DT, EGO, PARAMS, _blobs(blob), est)
+    assert bool(np.asarray(_consistent(pred, np.asarray([blob], np.float32), PARAMS, DT))[0, 0])
+    out = _step(_lost_ball(), blob, _blobs(blob))
     p = np.asarray(pred.cov[0], np.float64)
     h = np.eye(2, 4)
     s = h @ p @ h.T + 0.01 * np.eye(2)
@@ -146,7 +147,7 @@ def test_a_blob_on_the_line_ahead_moves_the_lost_track():
     np.testing.assert_allclose(out.mean[0], want, atol=1e-5)
     assert float(out.age[0]) == 0.0 and bool(out.found[0]) and bool(out.ball[0])
     assert int(np.asarray(out.valid).sum()) == 1  # no new track
-    recall = TrackMemory(4).recall(_lost_ball(), _blobs(blob), EGO, DT, PARAMS)
+    recall = _np(_recall(_lost_ball(), _blobs(blob), EGO, DT, PARAMS))
     assert bool(recall.redetected[0])
     np.testing.assert_allclose(recall.xy[0], blob, atol=1e-6)
 
@@ -159,7 +160,7 @@ def test_the_test_leaves_seen_slow_static_and_unconfirmed_tracks_alone():
                      dict(mean=(2.0, 2.0, 0.5, 0.0), age=0.5, static=True),
                      dict(mean=(2.0, 2.0, 0.5, 0.0), age=0.5, hits=2)])
     pred = _predicted(tracks)
-    behind = pred.mean[:, :2] - jnp.asarray([[1.0, 0.0]], jnp.float32)
-    assert np.asarray(motion_consistent(pred, behind, PARAMS, DT)).all()
+    behind = pred.mean[:, :2] - np.asarray([[1.0, 0.0]], np.float32)
+    assert np.asarray(_consistent(pred, behind, PARAMS, DT)).all()
     lost = _table([dict(mean=(2.0, 2.0, 0.5, 0.0), age=0.5)])
-    assert not bool(motion_consistent(_predicted(lost), behind[:1], PARAMS, DT)[0, 0])
+    assert not bool(np.asarray(_consistent(_predicted(lost), behind[:1], PARAMS, DT))[0, 0])
