@@ -1,7 +1,6 @@
 """The Kalman baseline against a textbook NumPy Kalman filter, and the baselines on a standing ball."""
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
@@ -16,6 +15,12 @@ from heatpf_jax.baselines.kalman import (
 )
 from heatpf_jax.sim import render_heatmap
 from tests.conftest import SMALL_OPTIONS
+
+# Through `jit`, inputs in NumPy: run eagerly, each operation (even `jnp.asarray`) compiles a program of its own.
+_predict = jax.jit(kalman_predict)
+_update = jax.jit(kalman_update)
+_odometry = jax.jit(kalman_odometry)
+_log_likelihood = jax.jit(kalman_log_likelihood)
 
 
 def _np_predict(m, p, dt, q):
@@ -36,15 +41,15 @@ def test_predict_update_sequence_matches_numpy():
     m = np.array([1.0, -0.5, 0.3, 0.1])
     a = rng.normal(size=(4, 4))
     p = a @ a.T * 0.1 + 0.05 * np.eye(4)
-    state = KalmanState(jnp.asarray(m, jnp.float32), jnp.asarray(p, jnp.float32))
+    state = KalmanState(m.astype(np.float32), p.astype(np.float32))
     for t in range(15):
         z = rng.normal(size=2)
         has = t % 3 != 2
         m, p = _np_predict(m, p, 0.1, 2.0)
         if has:
             m, p = _np_update(m, p, z, 0.15)
-        state = kalman_predict(state, jnp.float32(0.1), jnp.float32(2.0))
-        state = kalman_update(state, jnp.asarray(z, jnp.float32), jnp.asarray(has), jnp.float32(0.15))
+        state = _predict(state, np.float32(0.1), np.float32(2.0))
+        state = _update(state, z.astype(np.float32), np.asarray(has), np.float32(0.15))
     np.testing.assert_allclose(np.asarray(state.mean), m, rtol=1e-4, atol=1e-5)
     np.testing.assert_allclose(np.asarray(state.cov), p, rtol=1e-3, atol=1e-6)
 
@@ -53,16 +58,15 @@ def test_odometry_moves_mean_like_world_fixed_points():
     m = np.array([2.0, 1.0, 0.5, -0.2])
     p = np.diag([0.1, 0.2, 0.3, 0.4])
     odo = np.array([0.3, -0.1, 0.2])
-    out = kalman_odometry(KalmanState(jnp.asarray(m, jnp.float32), jnp.asarray(p, jnp.float32)),
-                          jnp.asarray(odo, jnp.float32), jnp.float32(0.0), jnp.float32(0.0))
+    start = KalmanState(m.astype(np.float32), p.astype(np.float32))
+    out = jax.tree.map(np.asarray, _odometry(start, odo.astype(np.float32), np.float32(0.0), np.float32(0.0)))
     c, s = np.cos(odo[2]), np.sin(odo[2])
     rt = np.array([[c, s], [-s, c]])
     np.testing.assert_allclose(np.asarray(out.mean[:2]), rt @ (m[:2] - odo[:2]), rtol=1e-5)
     np.testing.assert_allclose(np.asarray(out.mean[2:]), rt @ m[2:], rtol=1e-5)
     big = np.block([[rt, np.zeros((2, 2))], [np.zeros((2, 2)), rt]])
     np.testing.assert_allclose(np.asarray(out.cov), big @ p @ big.T, rtol=1e-5, atol=1e-7)
-    noisy = kalman_odometry(KalmanState(jnp.asarray(m, jnp.float32), jnp.asarray(p, jnp.float32)),
-                            jnp.asarray(odo, jnp.float32), jnp.float32(0.1), jnp.float32(0.1))
+    noisy = jax.tree.map(np.asarray, _odometry(start, odo.astype(np.float32), np.float32(0.1), np.float32(0.1)))
     assert np.all(np.linalg.eigvalsh(np.asarray(noisy.cov - out.cov)) > -1e-7)  # noise only adds uncertainty
 
 
@@ -74,8 +78,8 @@ def test_log_likelihood_matches_scipy():
         p = a @ a.T * 0.1 + 0.05 * np.eye(4)
         z = m[:2] + rng.normal(size=2)
         r = rng.uniform(0.05, 0.5)
-        state = KalmanState(jnp.asarray(m, jnp.float32), jnp.asarray(p, jnp.float32))
-        got = kalman_log_likelihood(state, jnp.asarray(z, jnp.float32), jnp.float32(r))
+        state = KalmanState(m.astype(np.float32), p.astype(np.float32))
+        got = _log_likelihood(state, z.astype(np.float32), np.float32(r))
         want = multivariate_normal.logpdf(z, mean=m[:2], cov=p[:2, :2] + r**2 * np.eye(2))
         np.testing.assert_allclose(float(got), want, rtol=1e-4, atol=1e-4)
 

@@ -3,7 +3,6 @@ NumPy brute force, the expected ball size against OpenCV's projection, and what 
 
 import cv2
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.ndimage import convolve1d
@@ -30,6 +29,12 @@ from heatpf_jax.colour.space import (
 
 M = num_bins()
 _likelihood = jax.jit(colour_likelihood, static_argnames=("bins", "top_bins", "blob_window"))
+# One program each for the helpers run here: eager, each of their operations would compile on its own.
+_histogram = jax.jit(histogram, static_argnums=1)
+_patch_histogram = jax.jit(patch_histogram, static_argnums=1)
+_smooth_intensity = jax.jit(smooth_intensity)
+_smooth_chromaticity = jax.jit(smooth_chromaticity)
+_expected_radius = jax.jit(expected_radius_px, static_argnums=3)
 
 
 def _scene(rng, h=24, w=32, centre=(12, 15), radius=4.0):
@@ -105,23 +110,23 @@ def test_bins_and_histograms_against_numpy(rng):
     np.testing.assert_array_equal(idx, want.astype(int))
     assert np.all(idx[0] // 4 == 6 * 12 + 6)  # grey, white and black share the chromaticity bin
     np.testing.assert_array_equal(np.asarray(jax.jit(rgi_bins)(img)), idx)  # jit rounds alike
-    np.testing.assert_allclose(histogram(idx, M), np.bincount(idx.ravel(), minlength=M) / idx.size, rtol=1e-6)
-    np.testing.assert_allclose(patch_histogram(img, (2, 3, 4, 5)),
+    np.testing.assert_allclose(_histogram(idx, M), np.bincount(idx.ravel(), minlength=M) / idx.size, rtol=1e-6)
+    np.testing.assert_allclose(_patch_histogram(img, (2, 3, 4, 5)),
                                np.bincount(idx[3:8, 2:6].ravel(), minlength=M) / 20, rtol=1e-6)
     q = rng.uniform(size=M) * (rng.uniform(size=M) < 0.1)
     q = q / q.sum()
     k = np.array([0.25, 0.5, 0.25])
     want = np.stack([np.convolve(row, k, mode="same") for row in q.reshape(-1, 4)]).ravel()
-    np.testing.assert_allclose(smooth_intensity(q), want / want.sum(), rtol=1e-5, atol=1e-8)
+    np.testing.assert_allclose(_smooth_intensity(q), want / want.sum(), rtol=1e-5, atol=1e-8)
     # Along r' and g': scipy's convolution with zero padding, renormalised.
     want = convolve1d(convolve1d(q.reshape(12, 12, 4), k, axis=0, mode="constant"), k, axis=1, mode="constant")
-    np.testing.assert_allclose(smooth_chromaticity(q), want.ravel() / want.sum(), rtol=1e-5, atol=1e-8)
+    np.testing.assert_allclose(_smooth_chromaticity(q), want.ravel() / want.sum(), rtol=1e-5, atol=1e-8)
 
 
 @pytest.mark.parametrize(("top_bins", "waist"), [(M, 1.0), (64, 0.618), ("exact", 1.0)])
 def test_likelihood_against_brute_force(rng, top_bins, waist):
     image = _scene(rng)
-    q = np.asarray(patch_histogram(image, (12, 9, 6, 6)), np.float64)
+    q = np.asarray(_patch_histogram(image, (12, 9, 6, 6)), np.float64)
     assert np.count_nonzero(q) <= 64  # the truncated tables are exact for this reference
     if top_bins == "exact":  # the least power of two (>= 8) holding every non-empty bin
         top_bins = exact_top_bins(q)
@@ -130,7 +135,7 @@ def test_likelihood_against_brute_force(rng, top_bins, waist):
     half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)  # every size, and 0 (no ball possible)
     params = ColourParams(theta=0.15, window_scale=0.8, ring_scale=2.0, min_half_size=1.0, max_half_size=4.0,
                           window_waist=waist)
-    q32 = jnp.asarray(q, jnp.float32)
+    q32 = q.astype(np.float32)  # NumPy: jnp's cast compiles
     got = np.asarray(_likelihood(image, q32, half, params, top_bins=top_bins, blob_window=False))
     first = _brute_force(image, q, half, params)
     np.testing.assert_allclose(got, first, atol=2e-5)
@@ -146,7 +151,7 @@ def test_reference_score_and_light_against_brute_force(rng):
     """The coefficient divided by the reference's own score before theta; a frame under another light (a gain
     and a colour cast) brought under the reference's (von Kries, grey world) first."""
     image = _scene(rng)
-    q = np.asarray(patch_histogram(image, (12, 9, 6, 6)), np.float64)
+    q = np.asarray(_patch_histogram(image, (12, 9, 6, 6)), np.float64)
     half = rng.integers(0, 6, image.shape[:2]).astype(np.float32)
     params = ColourParams(theta=0.3, window_scale=0.8, max_half_size=4.0, reference_score=0.55)
     cast = np.clip(np.round(image * np.array([1.1, 0.95, 0.75])), 0, 255).astype(np.uint8)
@@ -155,7 +160,7 @@ def test_reference_score_and_light_against_brute_force(rng):
     want = np.clip(np.round(cast * (white / cast.reshape(-1, 3).mean(axis=0))), 0, 255)
     np.testing.assert_array_equal(balance(cast, white), want)
     assert np.abs(want - image).mean() < 3.0  # the cast undone, but for rounding and clipping
-    q32 = jnp.asarray(q, jnp.float32)
+    q32 = q.astype(np.float32)  # NumPy: jnp's cast compiles
     for frame, light in ((image, None), (cast, white)):
         got = np.asarray(_likelihood(frame, q32, half, params, top_bins=64, blob_window=False, white=light))
         np.testing.assert_allclose(got, _brute_force(frame, q, half, params, light), atol=3e-5)
@@ -176,7 +181,7 @@ def test_blob_half_size_against_brute_force(rng):
 
 def test_map_peaks_at_the_ball_and_stays_low_without_it(rng):
     image = _scene(rng, h=40, w=48, centre=(20, 22), radius=5.0)
-    q = smooth_intensity(patch_histogram(image, (19, 17, 6, 6)))
+    q = _smooth_intensity(_patch_histogram(image, (19, 17, 6, 6)))
     half = np.full(image.shape[:2], 5.0, np.float32)
     heat = np.asarray(_likelihood(image, q, half, ColourParams()))
     peak = np.unravel_index(np.argmax(heat), heat.shape)
@@ -193,7 +198,7 @@ def test_expected_radius_against_opencv_projection():
     intrinsics = np.array([143.0, 143.0, 99.5, 74.5])
     pose = camera_pose(height=0.6, pitch=np.deg2rad(15.0), yaw=0.1)  # the top rows see above the horizon
     radius = 0.075
-    got = np.asarray(expected_radius_px(intrinsics, pose, radius, (150, 200)))
+    got = np.asarray(_expected_radius(intrinsics, pose, radius, (150, 200)))
     assert np.all(got[:5] == 0.0)  # above the horizon no ball can be
     k = np.array([[143.0, 0, 99.5], [0, 143.0, 74.5], [0, 0, 1]])
     base_to_cam = np.linalg.inv(pose)
@@ -215,9 +220,9 @@ def test_heatmaps_of_a_sequence_match_frame_by_frame(rng):
     intrinsics = np.array([40.0, 40.0, 15.5, 11.5])
     poses = np.stack([camera_pose(height=0.6, pitch=np.deg2rad(p)) for p in (25.0, 35.0)])
     images = np.stack([_scene(rng), _scene(rng, centre=(15, 10))])
-    q = patch_histogram(images[0], (12, 9, 6, 6))
+    q = _patch_histogram(images[0], (12, 9, 6, 6))
     heat = np.asarray(colour_heatmaps(images, q, intrinsics, poses, 0.075, ColourParams()))
     for t in range(2):
-        half = expected_radius_px(intrinsics, poses[t], 0.075, (24, 32))
+        half = _expected_radius(intrinsics, poses[t], 0.075, (24, 32))
         np.testing.assert_allclose(heat[t], _likelihood(images[t], q, half, ColourParams()), atol=1e-6)
     assert heat.min() >= 0.0 and heat.max() <= 1.0

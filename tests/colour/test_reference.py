@@ -25,6 +25,12 @@ from heatpf_jax.colour.space import channel_means, exact_top_bins, histogram, nu
 
 M = num_bins()
 _map = jax.jit(colour_likelihood, static_argnames=("bins", "top_bins", "blob_window"))
+# Through `jit`: run eagerly, each of their operations compiles a program of its own (per shape).
+_rgi_bins = jax.jit(rgi_bins)
+_histogram = jax.jit(histogram, static_argnames="num")
+_patch_histogram = jax.jit(patch_histogram, static_argnames="box")
+_channel_means = jax.jit(channel_means)
+_window_half_sizes = jax.jit(window_half_sizes)
 
 GRASS = np.array([58.0, 128.0, 46.0])
 
@@ -111,7 +117,7 @@ def test_ellipse_prior_and_ring_against_numpy(rng):
         grow_y, grow_x = h // 2 + h % 2, w // 2 + w % 2  # half the box each side, rounded outwards
         mask[max(y - grow_y, 0):y + h + grow_y, max(x - grow_x, 0):x + w + grow_x] = True
         mask[y:y + h, x:x + w] = False
-        idx = np.asarray(rgi_bins(image))[mask]
+        idx = np.asarray(_rgi_bins(image))[mask]
         assert pixels == mask.sum()
         np.testing.assert_allclose(got, np.bincount(idx, minlength=M) / idx.size, rtol=1e-6)
 
@@ -127,9 +133,9 @@ def test_heaviest_bins():
 def _canvas_coefficient(q, patch, background, s, params):
     """NumPy brute force of :func:`locate_object`'s canvas: the coefficient of every window centred in the patch,
     the pixels outside it each holding the background histogram."""
-    idx = np.asarray(rgi_bins(patch))
+    idx = np.asarray(_rgi_bins(patch))
     h, w = idx.shape
-    outer = int(window_half_sizes(float(s), params._replace(window_scale=1.0))[1])
+    outer = int(_window_half_sizes(float(s), params._replace(window_scale=1.0))[1])
     out = np.zeros((h, w))
     for v in range(h):
         for u in range(w):
@@ -158,7 +164,7 @@ def test_locate_object_against_brute_force(rng, waist):
     box = (6, 3, 12, 12)  # larger than the ball and off-centre
     background, _ = ring_histogram(frame, box)
     patch = frame[3:15, 6:18]
-    q = np.asarray(corrected_background_weighted(histogram(rgi_bins(patch), M), background))
+    q = np.asarray(corrected_background_weighted(_histogram(_rgi_bins(patch), M), background))
     q = q * (q >= np.sort(q)[-exact_top_bins(q)])  # the bins locate_object's tables hold
     q /= q.sum()
     params = ColourParams(window_waist=waist)
@@ -177,8 +183,8 @@ def test_the_background_loses_weight_whatever_the_box_holds(rng, scale, offset):
     ball = (30.0, 40.0, 6.0)
     frame = draw(rng, ball=ball, post=(57.0, 2.5))
     box = user_box(ball, scale, offset)
-    plain = np.asarray(patch_histogram(frame, box))
-    grass = np.asarray(rgi_bins(frame[3:12, 3:12])).ravel()  # grass only, away from lines, post and ball
+    plain = np.asarray(_patch_histogram(frame, box))
+    grass = np.asarray(_rgi_bins(frame[3:12, 3:12])).ravel()  # grass only, away from lines, post and ball
     grass_bins = np.unique(grass)
     ref = box_reference(frame, box, ReferenceOptions(intensity_smoothing=0.0, chroma_smoothing=0.0))
     model = np.asarray(ref.histogram)
@@ -202,7 +208,7 @@ def test_maps_are_near_one_at_the_ball_and_low_elsewhere(rng, reference):
     params = SCALED_PARAMS
     ref = box_reference(frame0, user_box(ball, scale, offset), params=params)
     params = params._replace(reference_score=ref.score)
-    white = channel_means(frame0)
+    white = _channel_means(frame0)
     half = np.full((60, 80), ball[2], np.float32)
 
     def heat(image):

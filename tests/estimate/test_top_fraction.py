@@ -11,7 +11,6 @@ import math
 from fractions import Fraction
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -19,10 +18,12 @@ import heatpf_jax as hp
 
 # One compilation per particle count: the fraction is traced (as inside the filter).
 _estimate = jax.jit(hp.estimate.top_fraction_estimate)
+# The fraction a Python float (concrete), the array operations in one program: run eagerly, each compiles its own.
+_concrete = jax.jit(hp.estimate.top_fraction_estimate, static_argnums=2)
 
 
 def _est(particles: np.ndarray, weights: np.ndarray, fraction: float) -> hp.Estimate:
-    return _estimate(jnp.asarray(particles), jnp.asarray(weights), jnp.float32(fraction))
+    return _estimate(particles, weights, np.float32(fraction))  # NumPy: an eager `jnp.asarray` compiles per shape
 
 
 def _reference(particles: np.ndarray, weights: np.ndarray, fraction: float):
@@ -85,7 +86,7 @@ def test_full_fraction_equals_numpy_average_and_cov(rng):
     np.testing.assert_allclose(est.mean, np.average(p64, axis=0, weights=w64), rtol=1e-5)
     np.testing.assert_allclose(est.weighted_mean, np.average(p64, axis=0, weights=w64), rtol=1e-5)
     np.testing.assert_allclose(est.cov, np.cov(p64.T, aweights=w64, bias=True), rtol=1e-4, atol=1e-7)
-    mean, cov = hp.estimate.weighted_mean_cov(jnp.asarray(particles), jnp.asarray(weights))
+    mean, cov = jax.jit(hp.estimate.weighted_mean_cov)(particles, weights)  # one program, not one per operation
     np.testing.assert_allclose(mean, np.average(p64, axis=0, weights=w64), rtol=1e-5)
     np.testing.assert_allclose(cov, np.cov(p64.T, aweights=w64, bias=True), rtol=1e-4, atol=1e-7)
 
@@ -94,16 +95,17 @@ def test_traced_fraction_under_jit_equals_concrete(rng):
     particles, weights = _cloud(rng, 200)
     for fraction in (0.05, 0.333, 0.95, 1.0):
         traced = _est(particles, weights, fraction)
-        concrete = hp.estimate.top_fraction_estimate(jnp.asarray(particles), jnp.asarray(weights), fraction)
+        concrete = _concrete(particles, weights, fraction)
         for a, b in zip(traced, concrete, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
         mean, cov, _, _ = _reference(particles, weights, fraction)
         np.testing.assert_allclose(traced.mean, mean, rtol=1e-5, atol=1e-5)
     # Same under vmap over a batch of fractions.
-    fractions = jnp.array([0.05, 0.5, 1.0], jnp.float32)
-    batch = jax.vmap(hp.estimate.top_fraction_estimate, in_axes=(None, None, 0))(
-        jnp.asarray(particles), jnp.asarray(weights), fractions
+    fractions = np.array([0.05, 0.5, 1.0], np.float32)
+    batch = jax.jit(jax.vmap(hp.estimate.top_fraction_estimate, in_axes=(None, None, 0)))(  # one program
+        particles, weights, fractions
     )
+    batch = jax.tree.map(np.asarray, batch)  # indexed in NumPy: an eager index compiles a program
     for i, fraction in enumerate((0.05, 0.5, 1.0)):
         mean, cov, _, _ = _reference(particles, weights, fraction)
         np.testing.assert_allclose(batch.mean[i], mean, rtol=1e-5, atol=1e-5)
@@ -141,7 +143,7 @@ def test_sorted_top_fraction_estimate_matches_reference_on_sorted_input(rng):
         order = np.argsort(-weights, kind="stable")
         for fraction in (0.05, 0.5, 0.95, 1.0):
             mean, cov, wmean, _ = _reference(particles, weights, fraction)
-            got = sorted_est(jnp.asarray(particles[order]), jnp.asarray(weights[order]), jnp.float32(fraction))
+            got = sorted_est(particles[order], weights[order], np.float32(fraction))
             np.testing.assert_allclose(got.mean, mean, rtol=1e-4, atol=1e-6)
             np.testing.assert_allclose(got.cov, cov, rtol=1e-4, atol=1e-6)
             np.testing.assert_allclose(got.weighted_mean, wmean, rtol=1e-4, atol=1e-6)
@@ -154,8 +156,12 @@ def test_top_fraction_piece_uses_the_shared_order(rng):
     xy = rng.normal(size=(60, 2)).astype(np.float32)
     w = rng.random(60).astype(np.float32)
     w /= w.sum()
-    est = hp.estimate.TopFraction().estimate(Particles(jnp.asarray(xy)), jnp.asarray(w),
-                                             order_by_weight(jnp.asarray(w)), hp.estimate.TopFractionParams(0.5))
+    @jax.jit  # one program: run eagerly, each operation compiles its own
+    def estimate(xy, w):
+        return hp.estimate.TopFraction().estimate(Particles(xy), w, order_by_weight(w),
+                                                  hp.estimate.TopFractionParams(0.5))
+
+    est = estimate(xy, w)
     keep = np.argsort(-w, kind="stable")[:30]
     ref = np.average(xy[keep], axis=0, weights=w[keep])
     np.testing.assert_allclose(np.asarray(est.mean), ref, rtol=1e-5, atol=1e-6)

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,7 +13,20 @@ from scipy import stats
 
 import heatpf_jax as hp
 from heatpf_jax.injection.birth_weight import BirthParams, BirthWeightedExplorers, birth_log_weight
+from heatpf_jax.measurements import Measurements
 from heatpf_jax.motion.random_walk import Particles
+
+# Through `jit`, the params (Python floats) static as they are eagerly: each eager operation compiles on its own.
+_birth_log_weight = jax.jit(birth_log_weight, static_argnames="params")
+
+
+@partial(jax.jit, static_argnames="params")
+def _inject(key, xy, log_w, rank, estimate, buffer, params):
+    """:meth:`BirthWeightedExplorers.inject` on a context with two slots used: one program."""
+    ctx = hp.injection.InjectionContext(
+        particles=Particles(xy), log_weights=log_w, rank=rank, used=jnp.int32(2), estimate=estimate,
+        motion=hp.motion.RandomWalk(), motion_params=hp.motion.RandomWalkParams(), measurements=buffer)
+    return BirthWeightedExplorers().inject(key, ctx, params)._replace(motion=None)  # not an array: not returned
 
 
 def _buffer(rng, m=48):
@@ -19,8 +34,9 @@ def _buffer(rng, m=48):
     xy = np.concatenate([rng.normal([2.0, 0.0], 0.05, size=half), rng.normal([4.0, 1.5], 0.05, size=half)])
     weight = rng.uniform(0.3, 1.0, size=m)
     valid = rng.uniform(size=m) < 0.8
-    return hp.measurements.empty_measurements(m)._replace(
-        xy=jnp.asarray(xy, jnp.float32), weight=jnp.asarray(weight, jnp.float32), valid=jnp.asarray(valid))
+    # NumPy, with the zero footprint of `empty_measurements` (in `jnp`, a program compiled per field and shape).
+    return Measurements(np.asarray(xy, np.float32), np.asarray(weight, np.float32), valid,
+                        np.zeros((m, 2, 2), np.float32))
 
 
 def _reference(xy, buffer, mean, cov, p: BirthParams):
@@ -39,8 +55,8 @@ def test_weight_against_scipy(rng):
     params = BirthParams(measurement_fraction=0.1, measurement_jitter=0.08, birth_rate=0.02, area=40.0)
     mean, cov = np.array([2.05, 0.02]), np.array([[0.02, 0.005], [0.005, 0.01]])
     xy = np.concatenate([rng.normal([2.0, 0.0], 0.1, size=(10, 2)), rng.normal([4.0, 1.5], 0.1, size=(10, 2))])
-    got = birth_log_weight(jnp.asarray(xy, jnp.float32), buffer, jnp.asarray(mean, jnp.float32),
-                           jnp.asarray(cov, jnp.float32), params)
+    got = _birth_log_weight(np.asarray(xy, np.float32), buffer, np.asarray(mean, np.float32),
+                            np.asarray(cov, np.float32), params)
     np.testing.assert_allclose(np.asarray(got), _reference(xy, buffer, mean, cov, params), rtol=1e-4, atol=1e-3)
     # Inside the cloud about the resampled particles' weight; at the far blob far below it.
     assert np.all(np.abs(np.asarray(got)[:3]) < 1.5) and np.all(np.asarray(got)[10:] < -5.0)
@@ -49,18 +65,17 @@ def test_weight_against_scipy(rng):
 def test_seeds_take_their_weight_in_the_lowest_support_slots(rng):
     n = 40
     buffer = _buffer(rng)
-    rank = jnp.asarray(rng.permutation(n), jnp.int32)
-    log_w = jnp.full((n,), -np.log(n), jnp.float32)
-    estimate = hp.Estimate(jnp.asarray([2.0, 0.0]), 0.01 * jnp.eye(2), jnp.asarray([2.0, 0.0]))
-    ctx = hp.injection.InjectionContext(
-        particles=Particles(jnp.asarray(rng.normal(size=(n, 2)) - 20.0, jnp.float32)), log_weights=log_w, rank=rank,
-        used=jnp.int32(2), estimate=estimate, motion=hp.motion.RandomWalk(),
-        motion_params=hp.motion.RandomWalkParams(), measurements=buffer)
+    # NumPy inputs, the context built in the jitted call: in `jnp` each is a program compiled on its own.
+    rank = rng.permutation(n).astype(np.int32)
+    log_w = np.full((n,), -np.log(n), np.float32)
+    estimate = hp.Estimate(np.asarray([2.0, 0.0], np.float32), np.float32(0.01) * np.eye(2, dtype=np.float32),
+                           np.asarray([2.0, 0.0], np.float32))
+    xy = np.asarray(rng.normal(size=(n, 2)) - 20.0, np.float32)
     params = BirthParams(measurement_fraction=0.25)
-    out = BirthWeightedExplorers().inject(jax.random.key(0), ctx, params)
+    out = jax.tree.map(np.asarray, _inject(jax.random.key(0), xy, log_w, rank, estimate, buffer, params))
     r = np.asarray(rank)
     taken = (r >= n - 2 - 10) & (r < n - 2)
-    moved = np.any(np.asarray(out.particles.xy) != np.asarray(ctx.particles.xy), axis=1)
+    moved = np.any(np.asarray(out.particles.xy) != xy, axis=1)
     np.testing.assert_array_equal(moved, taken)
     assert int(out.used) == 12
     new_xy = np.asarray(out.particles.xy)[taken]

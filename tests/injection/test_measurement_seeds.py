@@ -5,8 +5,9 @@ the seeds on the heat map that first shows the blob."""
 
 from __future__ import annotations
 
+import functools
+
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -14,19 +15,37 @@ import heatpf_jax as hp
 from heatpf_jax.injection import ReacquisitionParams, ReacquisitionSeeds, cloud_mean, has_support, robust_spread
 from heatpf_jax.motion.random_walk import Particles
 
+# One program each for the functions tested directly: run eagerly, each of their operations would compile on its own.
+_empty_measurements = jax.jit(hp.measurements.empty_measurements, static_argnums=0)
+_cloud_mean = jax.jit(cloud_mean)
+_robust_spread = jax.jit(robust_spread)
+_has_support = jax.jit(has_support)
+
+
+@functools.partial(jax.jit, static_argnames=("piece", "method", "motion"))
+def _apply_jit(key, context, params, *, piece, method, motion):
+    return getattr(piece, method)(key, context._replace(motion=motion), params)._replace(motion=None)
+
+
+def _apply(piece, method: str, key, context, params):
+    """``piece.method(key, context, params)`` as one program; the context's motion model (no array) is static."""
+    out = _apply_jit(key, context._replace(motion=None), params, piece=piece, method=method, motion=context.motion)
+    return out._replace(motion=context.motion)
+
 
 def _context(rng, n, blob_xy):
+    # NumPy arrays, for the jitted functions: jnp's conversions would each compile a program of their own.
     xy = rng.normal(size=(n, 2)) * 0.2 + np.array([1.0, 0.0])
     log_w = np.log(rng.uniform(0.5, 1.5, size=n))
     m = 16
-    buffer = hp.measurements.empty_measurements(m)._replace(
-        xy=jnp.asarray(np.tile(blob_xy, (m, 1)) + rng.normal(size=(m, 2)) * 0.01, jnp.float32),
-        weight=jnp.asarray(rng.uniform(0.3, 1.0, size=m), jnp.float32),
-        valid=jnp.asarray(np.arange(m) < 10),
+    buffer = _empty_measurements(m)._replace(
+        xy=(np.tile(blob_xy, (m, 1)) + rng.normal(size=(m, 2)) * 0.01).astype(np.float32),
+        weight=rng.uniform(0.3, 1.0, size=m).astype(np.float32),
+        valid=np.arange(m) < 10,
     )
     return hp.injection.InjectionContext(
-        particles=Particles(jnp.asarray(xy, jnp.float32)), log_weights=jnp.asarray(log_w, jnp.float32),
-        rank=jnp.arange(n, dtype=jnp.int32), used=jnp.int32(0), estimate=None, motion=hp.motion.RandomWalk(),
+        particles=Particles(xy.astype(np.float32)), log_weights=log_w.astype(np.float32),
+        rank=np.arange(n, dtype=np.int32), used=np.int32(0), estimate=None, motion=hp.motion.RandomWalk(),
         motion_params=hp.motion.RandomWalkParams(), measurements=buffer)
 
 
@@ -34,7 +53,7 @@ def test_cloud_mean_is_the_weighted_mean(rng):
     xy = rng.normal(size=(50, 2))
     log_w = rng.normal(size=50)
     w = np.exp(log_w) / np.exp(log_w).sum()
-    np.testing.assert_allclose(np.asarray(cloud_mean(jnp.asarray(xy, jnp.float32), jnp.asarray(log_w, jnp.float32))),
+    np.testing.assert_allclose(np.asarray(_cloud_mean(xy.astype(np.float32), log_w.astype(np.float32))),
                                w @ xy, rtol=1e-5, atol=1e-6)
 
 
@@ -43,11 +62,11 @@ def test_robust_spread_is_the_scaled_median_absolute_deviation(rng):
     explorers add."""
     xy = rng.normal(size=(501, 2)) * np.array([0.3, 0.2])
     mad = np.median(np.abs(xy - np.median(xy, axis=0)), axis=0)
-    got = float(robust_spread(jnp.asarray(xy, jnp.float32)))
+    got = float(_robust_spread(xy.astype(np.float32)))
     np.testing.assert_allclose(got, 1.4826 * np.sqrt(np.sum(mad**2)), rtol=1e-5)
     assert abs(got - np.hypot(0.3, 0.2)) < 0.05
     xy[:25] = rng.uniform(-4.0, 4.0, size=(25, 2))  # 5 % explorers anywhere
-    assert abs(float(robust_spread(jnp.asarray(xy, jnp.float32))) - np.hypot(0.3, 0.2)) < 0.06
+    assert abs(float(_robust_spread(xy.astype(np.float32))) - np.hypot(0.3, 0.2)) < 0.06
 
 
 def test_the_gate_is_pixels_of_the_footprint_at_least_metres(rng):
@@ -57,8 +76,8 @@ def test_the_gate_is_pixels_of_the_footprint_at_least_metres(rng):
     foot = rng.normal(size=(m, 2, 2)) * 0.2
     weight = rng.uniform(0.0, 1.0, size=m) * (rng.uniform(size=m) < 0.8)
     valid = rng.uniform(size=m) < 0.8
-    buffer = hp.measurements.Measurements(jnp.asarray(xy, jnp.float32), jnp.asarray(weight, jnp.float32),
-                                          jnp.asarray(valid), jnp.asarray(foot, jnp.float32))
+    buffer = hp.measurements.Measurements(xy.astype(np.float32), weight.astype(np.float32), valid,
+                                          foot.astype(np.float32))
     for _ in range(30):
         mean = rng.uniform(-3.0, 3.0, size=2)
         gate, px = rng.uniform(0.05, 0.4), rng.uniform(0.0, 3.0)
@@ -68,7 +87,7 @@ def test_the_gate_is_pixels_of_the_footprint_at_least_metres(rng):
         expected = bool(np.any(valid & (weight > 0) & (q <= 1.0)))
         if np.any(np.abs(q[valid & (weight > 0)] - 1.0) < 1e-3):
             continue  # too close to the gate's edge for float32
-        assert bool(has_support(buffer, jnp.asarray(mean, jnp.float32), jnp.float32(gate), jnp.float32(px))) == expected
+        assert bool(_has_support(buffer, mean.astype(np.float32), np.float32(gate), np.float32(px))) == expected
 
 
 @pytest.mark.parametrize(("blob", "before", "seeded"), [
@@ -85,8 +104,8 @@ def test_seeds_before_the_weighting_only_where_the_cloud_has_no_support(rng, blo
     if before is not None:
         previous = _context(rng, n, np.array(before)).measurements
         ctx = ctx._replace(previous_measurements=previous)
-    out = ReacquisitionSeeds().seed(jax.random.key(3), ctx, ReacquisitionParams(measurement_fraction=0.2,
-                                                                                measurement_jitter=0.02))
+    out = _apply(ReacquisitionSeeds(), "seed", jax.random.key(3), ctx,
+                 ReacquisitionParams(measurement_fraction=0.2, measurement_jitter=0.02))
     moved = np.any(np.asarray(out.particles.xy) != np.asarray(ctx.particles.xy), axis=1)
     assert moved.sum() == (8 if seeded else 0)
     assert int(out.used) == (8 if seeded else 0)
@@ -99,10 +118,12 @@ def test_seeds_before_the_weighting_only_where_the_cloud_has_no_support(rng, blo
 def test_the_fixed_share_after_the_resampling(rng):
     """``inject`` is ``MeasurementExplorers``'s: the share of the lowest-support slots, wherever the cloud is."""
     n = 40
-    ctx = _context(rng, n, np.array([1.2, 0.0]))._replace(estimate=hp.Estimate(jnp.zeros(2), jnp.eye(2), jnp.zeros(2)))
+    ctx = _context(rng, n, np.array([1.2, 0.0]))._replace(
+        estimate=hp.Estimate(np.zeros(2, np.float32), np.eye(2, dtype=np.float32), np.zeros(2, np.float32)))
     params = ReacquisitionParams(measurement_fraction=0.25)
-    out = ReacquisitionSeeds().inject(jax.random.key(0), ctx, params)
-    ref = hp.injection.MeasurementExplorers().inject(jax.random.key(0), ctx, hp.injection.MeasurementParams(0.25))
+    out = _apply(ReacquisitionSeeds(), "inject", jax.random.key(0), ctx, params)
+    ref = _apply(hp.injection.MeasurementExplorers(), "inject", jax.random.key(0), ctx,
+                 hp.injection.MeasurementParams(0.25))
     np.testing.assert_array_equal(np.asarray(out.particles.xy), np.asarray(ref.particles.xy))
     assert int(out.used) == 10
 
@@ -131,7 +152,7 @@ def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(sma
     h, w = small_sequence.heatmaps.shape[1:]
     visible = bool(p[2] > 0 and -0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5)
     assert visible == (offset == (2.0, 0.0))
-    assert bool(hp.injection.in_view(jnp.asarray(away[None], jnp.float32), inputs)[0]) == visible
+    assert bool(np.asarray(jax.jit(hp.injection.in_view)(away[None].astype(np.float32), inputs))[0]) == visible
     injector = hp.injection.MeasurementExplorers() if which == "fixed" else ReacquisitionSeeds()
     model = SMALL_FILTER._replace(injectors=(*SMALL_FILTER.injectors, injector))
     params = model.default_params()
@@ -139,10 +160,10 @@ def test_a_filter_weighs_the_seeds_on_the_heat_map_that_first_shows_the_blob(sma
         injectors = dict(params.injectors)
         injectors["measurement"] = injectors["measurement"]._replace(seed_spread=0.01)
         params = params._replace(injectors=injectors)
-    state = model.init(jax.random.key(0), params)
+    state = jax.jit(model.init)(jax.random.key(0), params)  # one program, not one per operation
     n = state.particles.xy.shape[0]
     cloud = np.random.default_rng(0).normal(size=(n, 2)) * 0.05 + away
-    state = state._replace(particles=state.particles._replace(xy=jnp.asarray(cloud, jnp.float32)))
+    state = state._replace(particles=state.particles._replace(xy=cloud.astype(np.float32)))
     _, info = jax.jit(model.step)(jax.random.key(1), state, inputs, params)  # one compilation, not one per operation
     distance = float(np.linalg.norm(np.asarray(info.mean) - ball))
     assert (distance < 1.0) if on_ball else (distance > 1.8), distance

@@ -3,6 +3,8 @@ white-noise-acceleration covariance of the Kalman baseline, odometry on position
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,12 +14,21 @@ import heatpf_jax as hp
 from heatpf_jax.baselines.kalman import KalmanState, kalman_predict
 from heatpf_jax.motion.constant_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
 
+# Through `jit`, Python-float numbers static as they are eagerly: run eagerly, each operation compiles on its own.
+_kalman_predict = jax.jit(kalman_predict, static_argnums=(1, 2))
+
+
+@partial(jax.jit, static_argnames="params")
+def _predict(key, particles, inputs, params):
+    return ConstantVelocity().predict(key, particles, inputs, params)
+
 
 def _inputs(odometry=(0.0, 0.0, 0.0), dt=0.1):
+    # NumPy: in `jnp` each field is a program compiled on its own.
     return hp.StepInputs(
-        heatmap=jnp.zeros((2, 2), jnp.float32), has_heatmap=jnp.asarray(False), cam_to_base=jnp.eye(4),
-        odometry=jnp.asarray(odometry, jnp.float32), intrinsics=jnp.ones(4, jnp.float32),
-        plane_height=jnp.float32(0.0), dt=jnp.float32(dt),
+        heatmap=np.zeros((2, 2), np.float32), has_heatmap=np.asarray(False), cam_to_base=np.eye(4, dtype=np.float32),
+        odometry=np.asarray(odometry, np.float32), intrinsics=np.ones(4, np.float32),
+        plane_height=np.float32(0.0), dt=np.float32(dt),
     )
 
 
@@ -26,8 +37,7 @@ def test_noise_free_step_is_exact_kinematics_with_odometry(rng):
     v = rng.normal(size=(50, 2)).astype(np.float32)
     odom = np.array([0.2, -0.05, 0.3])
     quiet = ConstantVelocityParams(0.0, 0.0, 0.0, 0.0, 0.0)
-    out = ConstantVelocity().predict(jax.random.key(0), VelocityParticles(jnp.asarray(xy), jnp.asarray(v)),
-                                     _inputs(odom, 0.25), quiet)
+    out = _predict(jax.random.key(0), VelocityParticles(xy, v), _inputs(odom, 0.25), quiet)
     c, s = np.cos(0.3), np.sin(0.3)
     rt = np.array([[c, s], [-s, c]])
     v_new = v.astype(np.float64) @ rt.T
@@ -41,11 +51,12 @@ def test_process_noise_matches_the_kalman_baseline():
     n = 200_000
     params = ConstantVelocityParams(accel_std=2.0, diffusion_std=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0,
                                     spawn_speed_std=0.0)
-    start = VelocityParticles(jnp.zeros((n, 2)), jnp.zeros((n, 2)))
-    out = ConstantVelocity().predict(jax.random.key(1), start, _inputs(dt=0.2), params)
+    start = VelocityParticles(np.zeros((n, 2), np.float32), np.zeros((n, 2), np.float32))
+    out = _predict(jax.random.key(1), start, _inputs(dt=0.2), params)
     samples = np.concatenate([np.asarray(out.xy), np.asarray(out.v)], axis=1).astype(np.float64)
     cov = np.cov(samples.T)
-    q = np.asarray(kalman_predict(KalmanState(jnp.zeros(4), jnp.zeros((4, 4))), 0.2, 2.0).cov, np.float64)
+    q = np.asarray(_kalman_predict(KalmanState(np.zeros(4, np.float32), np.zeros((4, 4), np.float32)), 0.2, 2.0).cov,
+                   np.float64)
     # Sampling error of a covariance entry: about sqrt(2 / n) sqrt(q_ii q_jj); allow 4 of them.
     tol = 4 * np.sqrt(2.0 / n) * np.sqrt(np.outer(np.diag(q), np.diag(q))) + 1e-9
     assert np.all(np.abs(cov - q) <= tol), (cov, q)
@@ -56,8 +67,9 @@ def test_spawn_and_filter_run(small_sequence):
     model = hp.paper_filter(hp.FilterOptions(num_particles=128, max_measurements=128, k_max=8))
     model = model._replace(motion=ConstantVelocity())
     params = model.default_params()
-    new = model.motion.spawn(jax.random.key(2), jnp.zeros((4000, 2)), params.motion)
-    assert float(jnp.std(new.v)) == pytest.approx(1.0, rel=0.05)
+    spawn_std = jax.jit(lambda key, xy, p: jnp.std(model.motion.spawn(key, xy, p).v))  # one program, as above
+    assert float(spawn_std(jax.random.key(2), np.zeros((4000, 2), np.float32), params.motion)) == pytest.approx(
+        1.0, rel=0.05)
     res = hp.run(jax.random.key(0), small_sequence, params, model)
     assert res.final_state.particles.v.shape == (128, 2)
     err = np.linalg.norm(np.asarray(res.info.mean) - small_sequence.ground_truth, axis=1)[-10:].mean()

@@ -44,6 +44,9 @@ _grad_blocked = jax.jit(jax.grad(lambda p, m, k: jnp.sum(blocked_weights(p, m, k
 _grad_plain = jax.jit(
     jax.grad(lambda p, m, k: jnp.sum(hp.observation.particle_weights(p, m, k, k_max=K_MAX, method="dense")))
 )
+# The reductions the references are checked against, one program each: eager ops compile one by one.
+_weights = jax.jit(weights_from)
+_plain_weights = jax.jit(partial(hp.observation.particle_weights, k_max=K_MAX, method="dense"))
 
 
 # --------------------------------------------------------------------------- references and inputs
@@ -81,7 +84,8 @@ def random_buffer(rng, m=M_RANDOM, n_valid=None, extent=3.0):
     valid[rng.choice(m - 20, n_valid, replace=False) if n_valid <= m - 20 else np.arange(n_valid)] = True
     # Garbage in invalid slots (large weights, inside the cloud), as a buffer that aged would hold.
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(xy), 2, 2)))
+    # NumPy arrays, for the jitted functions: jnp's would each compile a program of their own.
+    return hp.Measurements(xy, weight, valid, np.zeros((len(xy), 2, 2), np.float32))
 
 
 def heatmap(rng, shape=(37, 50), blobs=((25.0, 24.0, 9.0), (10.0, 30.0, 4.0))):
@@ -99,11 +103,11 @@ def raster_buffer(rng, threshold):
     """A real projected heat map (raster order, valid slots first when they fit)."""
     heat = heatmap(rng)
     return _project(
-        jnp.asarray(heat),
-        jnp.asarray((35.75, 35.75, 24.5, 18.0), jnp.float32),  # the paper's intrinsics at 1/4 scale
-        jnp.asarray(hp.camera.camera_pose(height=0.6, pitch=0.5), jnp.float32),
-        threshold=jnp.float32(threshold),
-        plane_height=jnp.float32(0.075),
+        heat,
+        np.asarray((35.75, 35.75, 24.5, 18.0), np.float32),  # the paper's intrinsics at 1/4 scale
+        np.asarray(hp.camera.camera_pose(height=0.6, pitch=0.5), np.float32),
+        threshold=np.float32(threshold),
+        plane_height=np.float32(0.075),
         max_measurements=M_RASTER,
     )
 
@@ -117,7 +121,7 @@ def particles_around(rng, meas, n=N_PART, spread=0.3, far=0):
     p[:n_exp] = rng.uniform((-0.5, -4.0), (6.5, 4.0), (n_exp, 2))
     if far:
         p[n_exp : n_exp + far] = rng.choice([-1.0, 1.0], (far, 2)) * rng.uniform(50.0, 1e3, (far, 2))
-    return jnp.asarray(p, jnp.float32)
+    return p.astype(np.float32)
 
 
 def shuffled_buffer(rng, m, valid_fraction, extent=3.0):
@@ -126,7 +130,7 @@ def shuffled_buffer(rng, m, valid_fraction, extent=3.0):
     weight = rng.uniform(0.05, 1.0, m).astype(np.float32)
     valid = rng.uniform(size=m) < valid_fraction
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    return hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(xy), 2, 2)))
+    return hp.Measurements(xy, weight, valid, np.zeros((len(xy), 2, 2), np.float32))
 
 
 def uniform_particles(rng, meas, n=N_PART, far=0):
@@ -137,7 +141,7 @@ def uniform_particles(rng, meas, n=N_PART, far=0):
     p = rng.uniform(box.min(axis=0), box.max(axis=0), (n, 2))
     if far:
         p[:far] = rng.choice([-1.0, 1.0], (far, 2)) * rng.uniform(50.0, 1e3, (far, 2))
-    return jnp.asarray(p, jnp.float32)
+    return p.astype(np.float32)
 
 
 def assert_same(a, b) -> None:
@@ -166,8 +170,8 @@ def check_against_references(particles, meas, k, got, *, tol=1e-5):
     np.testing.assert_array_equal(sel, rsel)
     np.testing.assert_allclose(sq, rsq, rtol=tol, atol=1e-12)
     np.testing.assert_allclose(w, rw, rtol=1e-7)
-    ours = np.asarray(weights_from(*got, meas.valid))
-    plain = np.asarray(hp.observation.particle_weights(particles, meas, jnp.int32(k), k_max=K_MAX, method="dense"))
+    ours = np.asarray(_weights(*got, meas.valid))
+    plain = np.asarray(_plain_weights(particles, meas, jnp.int32(k)))
     np.testing.assert_allclose(ours, plain, rtol=tol)
     np.testing.assert_allclose(ours, ref_weights(rsq, rw, rsel, valid), rtol=tol)
 
@@ -235,7 +239,7 @@ def test_buffer_order_changes_nothing():
     parts = uniform_particles(rng, raster, far=2)
     want = [np.asarray(a) for a in _blocked(parts, raster, jnp.int32(K_MAX))]
     for order in (np.arange(M_RASTER)[::-1], rng.permutation(M_RASTER)):
-        permuted = jax.tree.map(lambda a, order=order: a[order], raster)
+        permuted = jax.tree.map(lambda a, order=order: np.asarray(a)[order], raster)  # NumPy: no gather to compile
         got = [np.asarray(a) for a in _blocked(parts, permuted, jnp.int32(K_MAX))]
         for a, b in zip(got, want, strict=True):
             assert_same(a, b)
@@ -253,7 +257,7 @@ def test_projected_heat_map_layout(threshold):
         check_against_references(parts, meas, k, _blocked(parts, meas, jnp.int32(k)))
     # The same buffer with a third of its slots invalidated at random: scattered valid slots.
     keep = np.asarray(meas.valid) & (rng.uniform(size=M_RASTER) > 0.33)
-    holes = meas._replace(weight=jnp.where(jnp.asarray(keep), meas.weight, 7.0), valid=jnp.asarray(keep))
+    holes = meas._replace(weight=np.where(keep, np.asarray(meas.weight), np.float32(7.0)), valid=keep)
     for k in (1, K_MAX):
         check_against_references(parts, holes, k, _blocked(parts, holes, jnp.int32(k)))
 
@@ -267,10 +271,10 @@ def test_fewer_valid_than_k_and_none_valid():
             got = _blocked(parts, meas, jnp.int32(k))
             check_against_references(parts, meas, k, got)
             assert int(np.sum(np.asarray(got[2]), axis=1).max()) == min(k, n_valid)
-    empty = hp.measurements.empty_measurements(M_RANDOM)
+    empty = jax.jit(hp.measurements.empty_measurements, static_argnums=0)(M_RANDOM)  # one program, not one per field
     sq, w, sel = (np.asarray(a) for a in _blocked(parts, empty, jnp.int32(3)))
     assert not sel.any() and (sq == 1.0).all() and (w == 0.0).all()
-    np.testing.assert_array_equal(np.asarray(weights_from(sq, w, sel, empty.valid)), np.ones(N_PART))
+    np.testing.assert_array_equal(np.asarray(_weights(sq, w, sel, empty.valid)), np.ones(N_PART))
 
 
 def test_buffer_smaller_than_k_and_concrete_k():
@@ -317,11 +321,8 @@ def test_distance_ties_give_a_valid_neighbour_set(shuffle):
     if shuffle:
         order = rng.permutation(M_RANDOM)
         xy, valid = xy[order], valid[order]
-    meas = hp.Measurements(
-        jnp.asarray(xy), jnp.ones(M_RANDOM, jnp.float32), jnp.asarray(valid), jnp.zeros((M_RANDOM, 2, 2))
-    )
+    meas = hp.Measurements(xy, np.ones(M_RANDOM, np.float32), valid, np.zeros((M_RANDOM, 2, 2), np.float32))
     parts = np.concatenate([rng.integers(0, 15, (80, 2)), rng.integers(0, 14, (80, 2)) + 0.5]).astype(np.float32)
-    parts = jnp.asarray(parts)
     for k in range(1, K_MAX + 1):
         for fn in (_blocked, _blocked_deep):
             sq, w, sel = (np.asarray(a) for a in fn(parts, meas, jnp.int32(k)))
@@ -340,8 +341,8 @@ def test_vmap_over_k(particles):
     rng = np.random.default_rng(6)
     meas = random_buffer(rng)  # random order, invalid slots scattered and a run at the end
     parts = particles_around(rng, meas, spread=1.0) if particles == "cloud" else uniform_particles(rng, meas, far=2)
-    ks = jnp.arange(1, K_MAX + 1, dtype=jnp.int32)
-    batched = _blocked_vmap_k(parts, meas, ks)
+    ks = np.arange(1, K_MAX + 1, dtype=np.int32)
+    batched = [np.asarray(a) for a in _blocked_vmap_k(parts, meas, ks)]  # indexed in NumPy: no slice to compile
     for i, k in enumerate(range(1, K_MAX + 1)):
         check_against_references(parts, meas, k, tuple(a[i] for a in batched))
 
@@ -349,11 +350,11 @@ def test_vmap_over_k(particles):
 def test_vmap_over_buffers_and_scan():
     rng = np.random.default_rng(7)
     m1, m2 = random_buffer(rng), random_buffer(rng, n_valid=100)
-    stacked = jax.tree.map(lambda a, b: jnp.stack([a, b]), m1, m2)
+    stacked = jax.tree.map(lambda a, b: np.stack([a, b]), m1, m2)
     p1, p2 = particles_around(rng, m1, spread=1.0), particles_around(rng, m2, spread=1.0)
-    parts = jnp.stack([p1, p2])
+    parts = np.stack([p1, p2])
     batched = jax.vmap(partial(k_nearest_blocked, k_max=K_MAX, chunk_size=64), in_axes=(0, 0, None))
-    got = jax.jit(batched)(parts, stacked, 5)
+    got = [np.asarray(a) for a in jax.jit(batched)(parts, stacked, 5)]  # indexed in NumPy: no slice to compile
     for i, (p, m) in enumerate(((p1, m1), (p2, m2))):
         check_against_references(p, m, 5, tuple(a[i] for a in got))
 
@@ -381,16 +382,19 @@ def test_grad_matches_plain_formulation(layout):
         parts = np.array(uniform_particles(rng, meas, far=3))
     first_valid = int(np.flatnonzero(np.asarray(meas.valid))[0])
     parts[-1] = np.asarray(meas.xy)[first_valid]  # on top of a measurement: inside the distance floor
-    parts = jnp.asarray(parts)
     for k in (1, 3, K_MAX):
         g = np.asarray(_grad_blocked(parts, meas, jnp.int32(k)))
         want = np.asarray(_grad_plain(parts, meas, jnp.int32(k)))
         assert np.all(np.isfinite(g))
         np.testing.assert_allclose(g, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
     # Gradients reach the measurement weights through the selected slots only.
-    gw = jax.grad(lambda w: jnp.sum(blocked_weights(parts, meas._replace(weight=w), jnp.int32(3))))(meas.weight)
+    # Jitted, one program each where eager ops compile one by one; the buffer an argument (NumPy arrays are not
+    # indexed by traced slots).
+    gw = jax.jit(jax.grad(lambda w, m: jnp.sum(blocked_weights(parts, m._replace(weight=w), jnp.int32(3)))))(
+        meas.weight, meas)
     dense = partial(hp.observation.particle_weights, k_max=K_MAX, method="dense")
-    gw_plain = jax.grad(lambda w: jnp.sum(dense(parts, meas._replace(weight=w), jnp.int32(3))))(meas.weight)
+    gw_plain = jax.jit(jax.grad(lambda w, m: jnp.sum(dense(parts, m._replace(weight=w), jnp.int32(3)))))(
+        meas.weight, meas)
     np.testing.assert_allclose(np.asarray(gw), np.asarray(gw_plain), rtol=1e-5, atol=1e-7)
 
 

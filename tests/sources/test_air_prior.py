@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import pytest
 from scipy import integrate, stats
 
 from heatpf_jax.sources.air_prior import GROUND_DF, air_log_ratio, air_probability, predict_flight
+
+# Through `jit`, every number traced: run eagerly, each of their operations compiles a program of its own.
+_air_probability = jax.jit(air_probability)
+_air_log_ratio = jax.jit(air_log_ratio)
+_predict_flight = jax.jit(predict_flight)
 
 
 def _posterior(m: float, sigma: float, share: float, scale: float) -> tuple[float, float]:
@@ -24,19 +30,19 @@ def _posterior(m: float, sigma: float, share: float, scale: float) -> tuple[floa
 def test_posterior_matches_quadrature(sigma, share, scale):
     for m in (-0.2, -0.02, 0.0, 0.01, 0.05, 0.1, 0.2, 0.6):
         p_air, mean = _posterior(m, sigma, share, scale)
-        assert float(air_probability(m, sigma, share, scale)) == pytest.approx(p_air, rel=2e-3, abs=1e-6)
-        assert float(air_log_ratio(m, sigma, share, scale)) == pytest.approx(mean, rel=2e-3, abs=1e-6)
+        assert float(_air_probability(m, sigma, share, scale)) == pytest.approx(p_air, rel=2e-3, abs=1e-6)
+        assert float(_air_log_ratio(m, sigma, share, scale)) == pytest.approx(mean, rel=2e-3, abs=1e-6)
 
 
 def test_posterior_limits():
     """Far below the noise: on the ground (no move); far above: the measured ratio less sigma^2 / lam."""
     m = np.array([-1.0, 0.3])
-    out = np.asarray(air_log_ratio(m, 0.03, 0.5, 0.2))
+    out = np.asarray(_air_log_ratio(m, 0.03, 0.5, 0.2))
     assert out[0] == pytest.approx(0.0, abs=1e-6)
     assert out[1] == pytest.approx(0.3 - 0.03**2 / 0.2, rel=1e-2)
-    assert np.all(np.isfinite(np.asarray(air_log_ratio(np.linspace(-5, 50, 101), 0.02, 1e-6, 0.1))))
+    assert np.all(np.isfinite(np.asarray(_air_log_ratio(np.linspace(-5, 50, 101), 0.02, 1e-6, 0.1))))
     # The more a ball is expected in the air, the farther a blob of the same size moves.
-    moves = [float(air_log_ratio(0.08, 0.03, a, 0.1)) for a in (0.001, 0.05, 0.9)]
+    moves = [float(_air_log_ratio(0.08, 0.03, a, 0.1)) for a in (0.001, 0.05, 0.9)]
     assert moves[0] < moves[1] < moves[2]
 
 
@@ -47,7 +53,7 @@ def test_predict_flight_is_the_two_state_chain():
     p = 0.3
     for _ in range(5):
         expected = np.array([p, 1.0 - p]) @ transition
-        p = float(predict_flight(p, dt, rate, flight))
+        p = float(_predict_flight(p, dt, rate, flight))
         assert p == pytest.approx(expected[0], rel=1e-5)
     stationary = launch / (launch + 1.0 - stay)
-    assert float(predict_flight(stationary, dt, rate, flight)) == pytest.approx(stationary, rel=1e-5)
+    assert float(_predict_flight(stationary, dt, rate, flight)) == pytest.approx(stationary, rel=1e-5)

@@ -17,10 +17,19 @@ from heatpf_jax.sources.blob_scale import (
     update_blob_scale,
 )
 from heatpf_jax.sources.lofted import LoftedParams, LoftedSource
-from tests.sources.test_lofted import MEASURE, RADIUS, _inputs, _pose, _sphere_heatmap, _weighted_xy
+from tests.sources.test_lofted import MEASURE, PAPER, RADIUS, _inputs, _pose, _sphere_heatmap, _weighted_xy
 
 CALIBRATED = LoftedSource(max_measurements=256, calibration_frames=32)
 MEASURE_STATE = jax.jit(CALIBRATED.measure_state)  # one compilation for the tests of a calibrated source
+# One program each for the functions tested directly: run eagerly, each of their operations would compile on its own.
+INIT_STATE = jax.jit(CALIBRATED.init_state)
+INIT_BLOB_SCALE = jax.jit(init_blob_scale, static_argnums=0)
+UPDATE = jax.jit(update_blob_scale)
+ESTIMATE = jax.jit(blob_scale_estimate)
+SPREAD = jax.jit(blob_scale_spread)
+FRAME_LOG_RATIO = jax.jit(frame_log_ratio)
+GROUND_CENTRE = jax.jit(ground_centre)
+GROUND_SPREAD = jax.jit(ground_spread)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
@@ -40,35 +49,34 @@ def test_frame_log_ratio_is_the_weighted_median():
         valid = rng.uniform(size=m) > 0.3
         ground[rng.uniform(size=m) < 0.1] = 0.0  # above the horizon: never counted
         ok = valid & (ground > 0)
-        got, has = frame_log_ratio(std, ground, weight, valid)
+        got, has = FRAME_LOG_RATIO(std, ground, weight, valid)
         assert bool(has)
         expected = _weighted_median(np.log(std[ok].astype(np.float64) / ground[ok]), weight[ok].astype(np.float64))
         assert float(got) == pytest.approx(expected, abs=1e-5)
-    _, has = frame_log_ratio(np.ones(4), np.zeros(4), np.ones(4), np.ones(4, bool))
+    _, has = FRAME_LOG_RATIO(np.ones(4), np.zeros(4), np.ones(4), np.ones(4, bool))
     assert not bool(has)
 
 
 def test_ring_buffer_and_quantile_against_numpy():
     rng = np.random.default_rng(4)
-    state = init_blob_scale(8)
-    assert float(blob_scale_estimate(state, 0.6)) == pytest.approx(0.6)  # the prior before any frame
-    update = jax.jit(update_blob_scale)
+    state = INIT_BLOB_SCALE(8)
+    assert float(ESTIMATE(state, 0.6)) == pytest.approx(0.6)  # the prior before any frame
     kept = []
     for i in range(13):
         value = float(rng.normal(-0.4, 0.3))
         has = i % 4 != 3  # every fourth frame has no blob: nothing is stored
-        state = update(state, value, has)
+        state = UPDATE(state, value, has)
         if has:
             kept.append(value)
         stored = np.sort(np.asarray(state.log_ratios)[np.asarray(state.filled)])
         np.testing.assert_allclose(stored, np.sort(np.float32(kept[-8:])), rtol=1e-6)
         for q in (0.2, 0.5, 0.9):
             expected = np.exp(np.quantile(np.float32(kept[-8:]), q, method="lower"))
-            assert float(blob_scale_estimate(state, 0.6, q)) == pytest.approx(expected, rel=1e-5)
+            assert float(ESTIMATE(state, 0.6, q)) == pytest.approx(expected, rel=1e-5)
         recent = np.float32(kept[-8:])
         centre = np.quantile(recent, 0.5, method="lower")
         spread = 1.4826 * np.quantile(np.abs(recent - centre), 0.5, method="lower") if len(recent) > 1 else 0.0
-        assert float(blob_scale_spread(state)) == pytest.approx(spread, rel=1e-5, abs=1e-7)
+        assert float(SPREAD(state)) == pytest.approx(spread, rel=1e-5, abs=1e-7)
 
 
 def test_a_detector_with_larger_blobs_is_learned():
@@ -80,7 +88,7 @@ def test_a_detector_with_larger_blobs_is_learned():
     params = LoftedParams()
     measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
-    state = CALIBRATED.init_state()
+    state = INIT_STATE()
     ground = np.array([2.4, 0.2])
     heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
     fixed = MEASURE(_inputs(heat, pose), params)  # the fixed prior (no state): what LoftedSource.measure gives
@@ -89,11 +97,11 @@ def test_a_detector_with_larger_blobs_is_learned():
         spot = np.array([rng.uniform(1.5, 4.0), rng.uniform(-1.0, 1.0)])
         heat = _sphere_heatmap(rng, np.array([*spot, RADIUS]), pose, scale=1.0)
         m, state = measure(_inputs(heat, pose), params, state)
-    learned = float(blob_scale_estimate(state.scale, params.blob_scale, params.calibration_quantile))
+    learned = float(ESTIMATE(state.scale, params.blob_scale, params.calibration_quantile))
     assert learned == pytest.approx(1.0, rel=0.12)
     heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose, scale=1.0)
     m, _ = measure(_inputs(heat, pose), params, state)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    paper = PAPER(_inputs(heat, pose), hp.sources.SourceParams())
     np.testing.assert_allclose(np.asarray(m.xy), np.asarray(paper.xy), atol=1e-5)
     assert np.linalg.norm(_weighted_xy(m) - ground) < 0.05 * np.linalg.norm(ground)
     air = np.array([2.8, -0.3])
@@ -101,15 +109,17 @@ def test_a_detector_with_larger_blobs_is_learned():
     m, after = measure(_inputs(heat, pose), params, state)
     assert np.linalg.norm(_weighted_xy(m) - air) < 0.1 * np.linalg.norm(air)
     # One flight does not move the estimate: the median of the last frames is still the ground balls'.
-    assert float(blob_scale_estimate(after.scale, params.blob_scale)) == pytest.approx(learned, rel=0.05)
+    assert float(ESTIMATE(after.scale, params.blob_scale)) == pytest.approx(learned, rel=0.05)
 
 
 def test_the_filter_carries_the_learned_scale():
     model = hp.build("heatmap").model  # its source: LoftedSource
-    assert isinstance(model.init(jax.random.key(0), model.default_params()).source.scale.log_ratios, jax.Array)
-    assert hp.build("paper").model.init(jax.random.key(0), hp.build("paper").params).source == ()
+    # init jitted: one program, where eager ops compile one by one
+    assert isinstance(jax.jit(model.init)(jax.random.key(0), model.default_params()).source.scale.log_ratios,
+                      jax.Array)
+    assert jax.jit(hp.build("paper").model.init)(jax.random.key(0), hp.build("paper").params).source == ()
     assert LoftedSource(calibration_frames=0).init_state() == ()
-    assert LoftedSource(calibration_frames=0, hover_frames=4).init_state().scale == ()
+    assert jax.jit(LoftedSource(calibration_frames=0, hover_frames=4).init_state)().scale == ()
     with pytest.raises(ValueError, match="^calibration_frames:"):
         LoftedSource(calibration_frames=-1).validate()
 
@@ -123,26 +133,25 @@ def test_the_filter_carries_the_learned_scale():
 def test_no_credible_blob_scale_gives_the_papers_measurements(ratios):
     """When what the frames show is no detector's ball (a learned scale outside [0.25, 2]) or its sizes scatter too
     widely to tell a flying ball, every pixel is measured where it projects: the paper's measurements, exactly."""
-    source = CALIBRATED  # 16 of its 32 slots filled
-    state = source.init_state()
+    state = INIT_STATE()  # CALIBRATED's: 16 of its 32 slots filled
     scale = state.scale
     for value in ratios:
-        scale = update_blob_scale(scale, value, True)
+        scale = UPDATE(scale, value, True)
     state = state._replace(scale=scale)
     rng = np.random.default_rng(5)
     pose = _pose(0.6, 15.0)
     heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose)  # a ball in the air, 0.5 m up
     inputs = _inputs(heat, pose)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    paper = PAPER(inputs, hp.sources.SourceParams())
     m, _ = MEASURE_STATE(inputs, LoftedParams(), state)
     valid_rows = lambda x: np.sort(np.asarray(x.xy)[np.asarray(x.valid)], axis=0)  # noqa: E731
-    assert int(np.sum(m.valid)) == int(np.sum(paper.valid)) > 0
+    assert int(np.asarray(m.valid).sum()) == int(np.asarray(paper.valid).sum()) > 0
     np.testing.assert_allclose(valid_rows(m), valid_rows(paper), atol=1e-5)
     # A credible scale (the simulator's 0.6, ratios that agree) places the same ball under itself.
-    scale = source.init_state().scale
+    scale = INIT_STATE().scale
     for value in np.log(0.6) + 0.02 * rng.standard_normal(16):
-        scale = update_blob_scale(scale, value, True)
-    state = source.init_state()._replace(scale=scale)
+        scale = UPDATE(scale, value, True)
+    state = INIT_STATE()._replace(scale=scale)
     placed, _ = MEASURE_STATE(inputs, LoftedParams(), state)
     assert np.linalg.norm(_weighted_xy(placed) - np.array([2.5, 0.0])) < 0.25
 
@@ -178,24 +187,24 @@ def test_ground_spread_ignores_balls_in_the_air():
     ground = np.log(0.6) + 0.03 * rng.standard_normal(170)
     air = np.log(0.6) + rng.exponential(0.4, 86)
     values = rng.permutation(np.concatenate([ground, air]))
-    state = init_blob_scale(256)
+    state = INIT_BLOB_SCALE(256)
     for value in values:
-        state = update_blob_scale(state, value, True)
-    spread = float(ground_spread(state))
+        state = UPDATE(state, value, True)
+    spread = float(GROUND_SPREAD(state))
     assert spread == pytest.approx(_ground_spread_reference(np.float32(values)), rel=1e-4)
     assert spread == pytest.approx(0.03, rel=0.2)
-    assert float(blob_scale_spread(state)) > 1.3 * spread
-    few = init_blob_scale(16)
+    assert float(SPREAD(state)) > 1.3 * spread
+    few = INIT_BLOB_SCALE(16)
     for value in values[:7]:
-        few = update_blob_scale(few, value, True)
-    assert float(ground_spread(few)) == 0.0  # fewer than 8 values: no spread yet
+        few = UPDATE(few, value, True)
+    assert float(GROUND_SPREAD(few)) == 0.0  # fewer than 8 values: no spread yet
     # The ground balls' centre: the half-sample mode, on log 0.6 where the median of all frames lies above it.
-    centre, has = ground_centre(state)
+    centre, has = GROUND_CENTRE(state)
     assert bool(has)
     assert float(centre) == pytest.approx(_half_sample_mode_reference(np.float32(values)), abs=1e-5)
     assert float(centre) == pytest.approx(np.log(0.6), abs=0.01)
-    assert float(np.log(blob_scale_estimate(state, 0.6))) > float(centre) + 0.02
-    assert not bool(ground_centre(few)[1])
+    assert float(np.log(ESTIMATE(state, 0.6))) > float(centre) + 0.02
+    assert not bool(GROUND_CENTRE(few)[1])
 
 
 def test_ground_centre_holds_when_most_frames_are_in_flight():
@@ -206,18 +215,18 @@ def test_ground_centre_holds_when_most_frames_are_in_flight():
     ground = np.log(0.6) + 0.026 * rng.standard_normal(13)
     air = np.log(0.6) + rng.exponential(0.5, 27)
     values = np.float32(rng.permutation(np.concatenate([ground, air])))
-    state = init_blob_scale(256)
+    state = INIT_BLOB_SCALE(256)
     for value in values:
-        state = update_blob_scale(state, value, True)
-    centre, has = ground_centre(state)
+        state = UPDATE(state, value, True)
+    centre, has = GROUND_CENTRE(state)
     assert bool(has)
     assert float(centre) == pytest.approx(_half_sample_mode_reference(values), abs=1e-5)
     assert float(centre) == pytest.approx(np.log(0.6), abs=0.03)
     v = np.sort(np.float64(values))
     shorth = min((v[i + 20] - v[i], 0.5 * (v[i] + v[i + 20])) for i in range(20))[1]
     assert shorth > np.log(0.6) + 0.04  # the shortest half alone is pulled up by the flights
-    assert float(ground_spread(state)) == pytest.approx(_ground_spread_reference(values), rel=1e-4)
-    assert float(ground_spread(state)) < 0.06
+    assert float(GROUND_SPREAD(state)) == pytest.approx(_ground_spread_reference(values), rel=1e-4)
+    assert float(GROUND_SPREAD(state)) < 0.06
 
 
 def test_a_run_that_starts_in_a_flight_still_places_a_flying_ball():
@@ -226,17 +235,17 @@ def test_a_run_that_starts_in_a_flight_still_places_a_flying_ball():
     size; read against the median and its spread, it was left on the plane, 8 m too far."""
     rng = np.random.default_rng(16)
     values = np.concatenate([np.log(0.6) + 0.026 * rng.standard_normal(10), np.log(0.6) + rng.exponential(1.0, 22)])
-    scale = CALIBRATED.init_state().scale
+    scale = INIT_STATE().scale
     for value in rng.permutation(values):
-        scale = update_blob_scale(scale, value, True)
-    assert float(blob_scale_spread(scale)) > LoftedParams().calibration_max_spread  # the median's view
-    assert float(ground_spread(scale)) < 0.06
-    state = CALIBRATED.init_state()._replace(scale=scale)
+        scale = UPDATE(scale, value, True)
+    assert float(SPREAD(scale)) > LoftedParams().calibration_max_spread  # the median's view
+    assert float(GROUND_SPREAD(scale)) < 0.06
+    state = INIT_STATE()._replace(scale=scale)
     pose = _pose(0.6, 15.0)
     truth = np.array([2.5, 0.0])
     inputs = _inputs(_sphere_heatmap(rng, np.array([*truth, 0.5]), pose), pose)
     placed, _ = MEASURE_STATE(inputs, LoftedParams(), state)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    paper = PAPER(inputs, hp.sources.SourceParams())
     assert np.linalg.norm(_weighted_xy(paper) - truth) > 1.0
     assert np.linalg.norm(_weighted_xy(placed) - truth) < 0.1 * np.linalg.norm(truth)
 
@@ -249,7 +258,7 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     params = LoftedParams()
     measure = MEASURE_STATE
     pose = _pose(0.6, 25.0, yaw=0.1)
-    state = CALIBRATED.init_state()
+    state = INIT_STATE()
     for _ in range(20):  # ground balls: the detector's scale and spread are learned, the flight state stays low
         spot = np.array([rng.uniform(1.5, 3.5), rng.uniform(-0.8, 0.8)])
         m, state = measure(_inputs(_sphere_heatmap(rng, np.array([*spot, RADIUS]), pose), pose), params, state)
@@ -257,7 +266,7 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     ground = np.array([2.4, 0.2])
     inputs = _inputs(_sphere_heatmap(rng, np.array([*ground, RADIUS]), pose), pose)
     m, _ = measure(inputs, params, state)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    paper = PAPER(inputs, hp.sources.SourceParams())
     np.testing.assert_allclose(np.asarray(m.xy), np.asarray(paper.xy), atol=1e-5)
     for height in (0.5, 0.35, 0.2):  # the flight's end
         m, state = measure(_inputs(_sphere_heatmap(rng, np.array([*ground, height + RADIUS]), pose), pose), params,
@@ -265,7 +274,7 @@ def test_a_low_ball_after_a_flight_is_placed_by_its_size():
     assert float(state.flight) > 0.9
     inputs = _inputs(_sphere_heatmap(rng, np.array([*ground, 0.06 + RADIUS]), pose), pose)
     m, _ = measure(inputs, params, state)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    paper = PAPER(inputs, hp.sources.SourceParams())
     plane_error = np.linalg.norm(_weighted_xy(paper) - ground)
     assert plane_error > 0.25
     assert np.linalg.norm(_weighted_xy(m) - ground) < 0.4 * plane_error
@@ -277,10 +286,10 @@ def test_a_flying_ball_is_sized_against_the_ground_balls_not_the_flights():
     the ground balls' centre (``ground_centre``) instead: placed as with the ground balls' scale known."""
     rng = np.random.default_rng(12)
     values = np.concatenate([np.log(0.6) + 0.02 * rng.standard_normal(17), np.log(0.6) + rng.exponential(0.4, 14)])
-    state = CALIBRATED.init_state()
+    state = INIT_STATE()
     scale = state.scale
     for value in rng.permutation(values):
-        scale = update_blob_scale(scale, value, True)
+        scale = UPDATE(scale, value, True)
     state = state._replace(scale=scale)
     pose = _pose(0.6, 15.0)
     inputs = _inputs(_sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), pose), pose)  # a ball 0.5 m up

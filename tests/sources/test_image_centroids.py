@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import pytest
 
@@ -14,6 +15,20 @@ from heatpf_jax.sources.image_centroids import ball_radius_px, blob_centres, sum
 INTRINSICS, SHAPE = scaled_camera(2)  # 100 x 75
 CAM = hp.camera.camera_pose(height=0.6, pitch=np.deg2rad(30.0))
 RADIUS = 0.075
+# Through `jit`: run eagerly, each of their operations compiles a program of its own (per shape).
+_summed_area = jax.jit(summed_area)
+_ball_radius_px = jax.jit(ball_radius_px)
+_blob_centres = jax.jit(blob_centres, static_argnames="iterations")
+_project_pixel = jax.jit(hp.camera.project_pixel)  # one program for every pixel
+
+
+def _centres(heat, start, **kwargs):
+    """:func:`blob_centres` of ``start`` padded with copies of its first pixel to a multiple of 256, the padding
+    cut off again: each pixel's mean shift is its own, and the calls with the same ``iterations`` share one program
+    (about 0.7 s to compile, where each start count would compile its own)."""
+    m = len(start)
+    padded = np.concatenate([start, np.repeat(start[:1], -m % 256, axis=0)])
+    return jax.tree.map(lambda x: np.asarray(x)[:m], _blob_centres(heat, padded, INTRINSICS, CAM, **kwargs))
 
 
 def _radius_np(u: float, v: float) -> float:
@@ -51,14 +66,14 @@ def _mean_shift_np(heat, start, threshold, reach, iterations):
 
 def test_summed_area_boxes(rng):
     table = rng.uniform(size=(7, 9)).astype(np.float32)
-    s = np.asarray(summed_area(table))
+    s = np.asarray(_summed_area(table))
     assert s.shape == (8, 10) and np.all(s[0] == 0) and np.all(s[:, 0] == 0)
     np.testing.assert_allclose(s[5, 7] - s[2, 7] - s[5, 3] + s[2, 3], table[2:5, 3:7].sum(), rtol=1e-5)
 
 
 def test_ball_radius_is_f_r_over_depth():
     uv = np.array([[50.0, 60.0], [10.0, 40.0], [50.0, 2.0]])
-    got = np.asarray(ball_radius_px(uv, INTRINSICS, CAM, RADIUS))
+    got = np.asarray(_ball_radius_px(uv, INTRINSICS, CAM, RADIUS))
     np.testing.assert_allclose(got, [_radius_np(*p) for p in uv], rtol=1e-5)
 
 
@@ -70,8 +85,7 @@ def test_mean_shift_against_brute_force(rng, reach, iterations):
     heat = np.clip(heat + 0.04 * rng.standard_normal(SHAPE), 0, 1).astype(np.float32)
     v, u = np.nonzero(heat >= 0.3)
     start = np.stack([u, v], axis=1).astype(np.float32)
-    got = blob_centres(heat, start, INTRINSICS, CAM, threshold=0.3, plane_height=RADIUS, reach=reach,
-                       iterations=iterations)
+    got = _centres(heat, start, threshold=0.3, plane_height=RADIUS, reach=reach, iterations=iterations)
     want = _mean_shift_np(heat, start, 0.3, reach, iterations)
     # Window bounds are rounded: a float32 centroid at x.5 may round the other way than float64 does.
     close = np.all(np.abs(np.asarray(got.uv) - want[:, :2]) < 1e-3, axis=1)
@@ -89,9 +103,9 @@ def test_every_pixel_of_a_blob_ends_at_its_centre_and_projects_onto_the_ball(rng
     heat = np.clip(heat + 0.02 * rng.standard_normal(SHAPE), 0, 1).astype(np.float32)
     v, u = np.nonzero(heat >= 0.3)
     start = np.stack([u, v], axis=1).astype(np.float32)
-    got = blob_centres(heat, start, INTRINSICS, CAM, threshold=0.3, plane_height=RADIUS)
-    raw = np.array([hp.camera.project_pixel(p, INTRINSICS, CAM, RADIUS)[0] for p in start])
-    moved = np.array([hp.camera.project_pixel(p, INTRINSICS, CAM, RADIUS)[0] for p in np.asarray(got.uv)])
+    got = _centres(heat, start, threshold=0.3, plane_height=RADIUS)
+    raw = np.array([_project_pixel(p, INTRINSICS, CAM, RADIUS)[0] for p in start])
+    moved = np.array([_project_pixel(p, INTRINSICS, CAM, RADIUS)[0] for p in np.asarray(got.uv)])
     near_ball = np.linalg.norm(raw - ball[:2], axis=1) < 1.0
     assert near_ball.sum() >= 4 and (~near_ball).sum() >= 4
     assert np.ptp(raw[near_ball, 0]) > 0.4  # the pixels' own ground points spread along the ray
@@ -116,7 +130,6 @@ def test_a_ball_in_the_air_spills_out_of_its_window_and_a_ground_ball_does_not(s
     for name, centre in (("ground", np.array([2.5, 0.3, RADIUS])), ("air", np.array([2.5, 0.3, RADIUS + 0.35]))):
         heat = render(centre).astype(np.float32)
         v, u = np.nonzero(heat >= 0.3)
-        got = blob_centres(heat, np.stack([u, v], 1).astype(np.float32), INTRINSICS, CAM, threshold=0.3,
-                           plane_height=RADIUS)
+        got = _centres(heat, np.stack([u, v], 1).astype(np.float32), threshold=0.3, plane_height=RADIUS)
         spills[name] = np.asarray(got.spill)
     assert np.all(spills["ground"] <= 1.05) and np.median(spills["air"]) > 1.3

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -25,6 +24,17 @@ SHAPE = (150, 200)
 RADIUS = 0.075
 SOURCE = LoftedSource(max_measurements=256)
 MEASURE = jax.jit(SOURCE.measure)  # one compilation for every test here
+# The paper's source and the functions tested directly, one program each: run eagerly, each of their operations
+# would compile on its own.
+PAPER = jax.jit(hp.sources.PixelSource(max_measurements=256).measure)
+BLOB_SIZES = jax.jit(blob_sizes)
+BLOB_ELONGATION = jax.jit(hp.sources.blob_elongation)
+BRIGHT_PIXELS = jax.jit(bright_pixels, static_argnames="max_measurements")
+AIR_POINTS = jax.jit(air_points)
+SUBPIXEL_PEAKS = jax.jit(subpixel_peaks)
+SUMMED_AREAS = jax.jit(summed_areas)
+SUMMED_AREA = jax.jit(summed_area)
+BOX_MAX = jax.jit(_box_max, static_argnums=1)
 
 
 def _pose(height: float, pitch_deg: float, yaw: float = 0.0) -> np.ndarray:
@@ -62,10 +72,11 @@ def _sphere_heatmap(
 
 
 def _inputs(heat: np.ndarray, pose: np.ndarray) -> StepInputs:
+    # NumPy arrays, for the jitted functions: jnp's conversions would each compile a program of their own.
     return StepInputs(
-        heatmap=jnp.asarray(heat), has_heatmap=jnp.asarray(True), cam_to_base=jnp.asarray(pose, jnp.float32),
-        odometry=jnp.zeros(3, jnp.float32), intrinsics=jnp.asarray(INTRINSICS, jnp.float32),
-        plane_height=jnp.asarray(RADIUS, jnp.float32), dt=jnp.asarray(0.1, jnp.float32),
+        heatmap=np.asarray(heat), has_heatmap=np.asarray(True), cam_to_base=np.asarray(pose, np.float32),
+        odometry=np.zeros(3, np.float32), intrinsics=np.asarray(INTRINSICS, np.float32),
+        plane_height=np.asarray(RADIUS, np.float32), dt=np.asarray(0.1, np.float32),
     )
 
 
@@ -87,11 +98,11 @@ def test_ball_in_the_air_is_measured_under_it(ground, height):
     centre = np.array([*ground, height + RADIUS])
     heat = _sphere_heatmap(rng, centre, pose)
     m = MEASURE(_inputs(heat, pose), SOURCE.default_params())
-    assert int(np.sum(m.valid)) >= 4
+    assert int(np.asarray(m.valid).sum()) >= 4
     # The ground point under the ball, within 8 % of its range (the size gives the range to a few per cent).
     truth = np.asarray(ground)
     assert np.linalg.norm(_weighted_xy(m) - truth) < 0.08 * np.linalg.norm(truth)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    paper = PAPER(_inputs(heat, pose), hp.sources.SourceParams())
     if np.any(np.asarray(paper.valid)):  # below the horizon: the paper's projection lies far behind the ball
         assert np.linalg.norm(_weighted_xy(paper) - truth) > 0.3
 
@@ -101,7 +112,7 @@ def test_ball_above_the_horizon_is_measured():
     pose = _pose(0.5, 12.0)
     ground = np.array([3.0, 0.3])
     heat = _sphere_heatmap(rng, np.array([*ground, 0.9]), pose)  # centre 0.4 m above the camera
-    paper = hp.sources.PixelSource(max_measurements=256).measure(_inputs(heat, pose), hp.sources.SourceParams())
+    paper = PAPER(_inputs(heat, pose), hp.sources.SourceParams())
     assert not np.any(np.asarray(paper.valid))  # no ray of the blob meets the ground
     m = MEASURE(_inputs(heat, pose), SOURCE.default_params())
     # Within 10 % of the range: the sphere's outline, 20 degrees off the optical axis, is an ellipse 6 % longer
@@ -119,7 +130,7 @@ def test_ball_on_the_ground_gives_the_papers_measurements():
         heat = _sphere_heatmap(rng, np.array([*ground, RADIUS]), pose)
         inputs = _inputs(heat, pose)
         m = MEASURE(inputs, SOURCE.default_params())
-        paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+        paper = PAPER(inputs, hp.sources.SourceParams())
         for field in ("xy", "weight", "valid", "footprint"):
             np.testing.assert_allclose(np.asarray(getattr(m, field)), np.asarray(getattr(paper, field)), atol=1e-5)
         assert np.linalg.norm(_weighted_xy(m) - np.asarray(ground)) < 0.05 * np.linalg.norm(ground)
@@ -128,9 +139,9 @@ def test_ball_on_the_ground_gives_the_papers_measurements():
     heat = _sphere_heatmap(rng, np.array([2.5, 0.0, 0.5]), _pose(0.6, 15.0))
     inputs = _inputs(heat, _pose(0.6, 15.0))
     never = MEASURE(inputs, LoftedParams(min_ratio=float("inf")))
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
+    paper = PAPER(inputs, hp.sources.SourceParams())
     valid_rows = lambda m: np.sort(np.asarray(m.xy)[np.asarray(m.valid)], axis=0)  # noqa: E731
-    assert int(np.sum(never.valid)) == int(np.sum(paper.valid)) > 0
+    assert int(np.asarray(never.valid).sum()) == int(np.asarray(paper.valid).sum()) > 0
     np.testing.assert_allclose(valid_rows(never), valid_rows(paper), atol=1e-5)
     # max_ratio = min_ratio refuses the ball in the air: no measurement, instead of one metres behind it.
     placed = MEASURE(inputs, LoftedParams())
@@ -148,9 +159,9 @@ def test_blob_sizes_recovers_a_gaussian_std():
         u0, v0 = rng.uniform(60, 140), rng.uniform(40, 110)
         heat = (peak * np.exp(-0.5 * ((uu - u0) ** 2 + (vv - v0) ** 2) / std**2)).astype(np.float32)
         start = np.array([[round(u0) + 1.0, round(v0)]], np.float32)
-        out = blob_sizes(heat, start, INTRINSICS, pose, threshold=0.3, plane_height=RADIUS)
-        np.testing.assert_allclose(np.asarray(out.uv[0]), [u0, v0], atol=0.1)
-        assert float(out.std_px[0]) == pytest.approx(std, rel=0.1)
+        out = BLOB_SIZES(heat, start, INTRINSICS, pose, threshold=0.3, plane_height=RADIUS)
+        np.testing.assert_allclose(np.asarray(out.uv)[0], [u0, v0], atol=0.1)
+        assert float(np.asarray(out.std_px)[0]) == pytest.approx(std, rel=0.1)
 
 
 def test_fast_tables_match_brute_force():
@@ -158,13 +169,13 @@ def test_fast_tables_match_brute_force():
     rng = np.random.default_rng(13)
     tables = rng.uniform(0.0, 1.0, (3, 37, 53)).astype(np.float32) * (rng.uniform(size=(3, 37, 53)) > 0.5)
     expected = np.pad(tables.astype(np.float64).cumsum(1).cumsum(2), ((0, 0), (1, 0), (1, 0)))
-    np.testing.assert_allclose(np.asarray(summed_areas(tables)), expected, rtol=1e-5, atol=1e-4)
-    np.testing.assert_allclose(np.asarray(summed_areas(tables))[1], np.asarray(summed_area(tables[1])), rtol=1e-5,
+    np.testing.assert_allclose(np.asarray(SUMMED_AREAS(tables)), expected, rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(SUMMED_AREAS(tables))[1], np.asarray(SUMMED_AREA(tables[1])), rtol=1e-5,
                                atol=1e-4)
     heat = tables[0]
     padded = np.pad(heat, 3, constant_values=-np.inf)
     brute = np.array([[padded[i:i + 7, j:j + 7].max() for j in range(heat.shape[1])] for i in range(heat.shape[0])])
-    np.testing.assert_array_equal(np.asarray(_box_max(jnp.asarray(heat), 3)), brute)
+    np.testing.assert_array_equal(np.asarray(BOX_MAX(heat, 3)), brute)
 
 
 def test_air_points_inverts_the_projection():
@@ -175,11 +186,11 @@ def test_air_points_inverts_the_projection():
     cam = (points - pose[:3, 3]) @ pose[:3, :3]
     uv = np.stack([INTRINSICS[0] * cam[:, 0] / cam[:, 2] + INTRINSICS[2],
                    INTRINSICS[1] * cam[:, 1] / cam[:, 2] + INTRINSICS[3]], -1)
-    found, ok = air_points(uv.astype(np.float32), (INTRINSICS[0] * RADIUS / cam[:, 2]).astype(np.float32),
+    found, ok = AIR_POINTS(uv.astype(np.float32), (INTRINSICS[0] * RADIUS / cam[:, 2]).astype(np.float32),
                            INTRINSICS, pose, RADIUS)
     assert np.all(np.asarray(ok))
     np.testing.assert_allclose(np.asarray(found), points, atol=2e-4)
-    assert not np.any(np.asarray(air_points(uv[:2].astype(np.float32), np.zeros(2, np.float32), INTRINSICS, pose,
+    assert not np.any(np.asarray(AIR_POINTS(uv[:2].astype(np.float32), np.zeros(2, np.float32), INTRINSICS, pose,
                                             RADIUS)[1]))
 
 
@@ -202,7 +213,7 @@ def test_blob_elongation_is_the_ratio_of_a_gaussians_stds(a, b, angle):
     heat = (0.9 * np.exp(-0.5 * (x**2 / a**2 + y**2 / b**2))).astype(np.float32)
     uv = np.array([[97.3, 71.8]], np.float32)
     span = np.array([2.5 * np.sqrt(a * b)], np.float32)  # as LoftedSource spans it: 2.5 mass-based stds
-    got = float(hp.sources.blob_elongation(heat, uv, span, threshold=0.3)[0])
+    got = float(np.asarray(BLOB_ELONGATION(heat, uv, span, threshold=0.3))[0])
     assert got == pytest.approx(a / b, rel=0.04)
 
 
@@ -216,11 +227,12 @@ def test_two_ground_blobs_side_by_side_are_not_one_ball_in_the_air():
                       _sphere_heatmap(rng, np.array([2.05, 0.02, RADIUS]), pose))
     inputs = _inputs(heat, pose)
     lofted = LoftedSource(max_measurements=256, calibration_frames=0, hover_frames=0)
-    paper = hp.sources.PixelSource(max_measurements=256).measure(inputs, hp.sources.SourceParams())
-    blobs = blob_sizes(heat, *bright_pixels(heat, threshold=0.3, max_measurements=256)[:1], INTRINSICS, pose,
+    paper = PAPER(inputs, hp.sources.SourceParams())
+    blobs = BLOB_SIZES(heat, *BRIGHT_PIXELS(heat, threshold=0.3, max_measurements=256)[:1], INTRINSICS, pose,
                        threshold=0.3, plane_height=RADIUS)
     assert float(np.max(np.asarray(blobs.std_px) / np.asarray(blobs.ground_radius_px))) > 0.6 * 1.25  # by mass: flying
-    np.testing.assert_allclose(np.asarray(lofted.measure(inputs, LoftedParams()).xy), np.asarray(paper.xy), atol=1e-5)
+    np.testing.assert_allclose(np.asarray(jax.jit(lofted.measure)(inputs, LoftedParams()).xy), np.asarray(paper.xy),
+                               atol=1e-5)
 
 
 def test_subpixel_peaks_restore_a_gaussians_peak():
@@ -233,13 +245,13 @@ def test_subpixel_peaks_restore_a_gaussians_peak():
         s, peak = rng.uniform(1.0, 3.0), rng.uniform(0.4, 1.0)
         cu, cv = 15.0 + rng.uniform(-0.5, 0.5, 2)
         heat = peak * np.exp(-((uu - cu) ** 2 + (vv - cv) ** 2) / (2.0 * s * s))
-        refined = np.asarray(subpixel_peaks(heat.astype(np.float32)))
+        refined = np.asarray(SUBPIXEL_PEAKS(heat.astype(np.float32)))
         assert refined.max() == pytest.approx(peak, rel=2e-3)
         assert np.all(refined >= heat.astype(np.float32))
         changed = refined != heat.astype(np.float32)
         assert changed.sum() <= 4 and np.all(heat[changed] >= 0.5 * heat.max())  # only the top pixels
     speck = np.zeros((9, 9), np.float32)
     speck[4, 4] = 0.9
-    np.testing.assert_array_equal(np.asarray(subpixel_peaks(speck)), speck)
+    np.testing.assert_array_equal(np.asarray(SUBPIXEL_PEAKS(speck)), speck)
     plateau = np.clip(3.0 * np.exp(-((uu - 15.3) ** 2 + (vv - 14.8) ** 2) / 18.0), 0.0, 1.0).astype(np.float32)
-    assert float(np.asarray(subpixel_peaks(plateau)).max()) == 1.0
+    assert float(np.asarray(SUBPIXEL_PEAKS(plateau)).max()) == 1.0
