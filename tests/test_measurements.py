@@ -33,7 +33,8 @@ _project_jit = jax.jit(_project, static_argnames=("max_measurements", "downscale
 
 
 def project(heatmap, threshold, **kw):
-    out = _project_jit(jnp.asarray(heatmap, jnp.float32), jnp.float32(threshold), **kw)
+    # NumPy arguments: eager `jnp` conversions would each compile a program of their own.
+    out = _project_jit(np.asarray(heatmap, np.float32), np.float32(threshold), **kw)
     return hp.Measurements(*(np.asarray(a) for a in out))
 
 
@@ -200,11 +201,15 @@ def test_project_heatmap_valid_first_when_padded():
 # --------------------------------------------------------------------------- downscale
 
 
+# One program per (shape, factor): run eagerly, each of its operations would compile on its own.
+_downscale = jax.jit(hp.measurements.downscale_heatmap, static_argnums=2)
+
+
 @pytest.mark.parametrize("factor, shape", [(2, (24, 32)), (3, (25, 34)), (4, (24, 32))])
 def test_downscale_heatmap_block_mean_and_pixel_centres(factor, shape):
     rng = np.random.default_rng(36 + factor)
     heat = random_heatmap(rng, shape)
-    small, intr = hp.measurements.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), factor)
+    small, intr = _downscale(heat, INTRINSICS.astype(np.float32), factor)
     small, intr = np.asarray(small), np.asarray(intr, np.float64)
     h2, w2 = shape[0] // factor, shape[1] // factor
     assert small.shape == (h2, w2)
@@ -220,7 +225,7 @@ def test_downscale_heatmap_block_mean_and_pixel_centres(factor, shape):
         uo, vo = factor * up + (factor - 1) / 2, factor * vp + (factor - 1) / 2
         np.testing.assert_allclose(new_ray, [(uo - cx) / fx, (vo - cy) / fy, 1.0], atol=1e-6)
     # factor 1 is the identity.
-    same, intr1 = hp.measurements.downscale_heatmap(jnp.asarray(heat), jnp.asarray(INTRINSICS, jnp.float32), 1)
+    same, intr1 = _downscale(heat, INTRINSICS.astype(np.float32), 1)
     np.testing.assert_array_equal(np.asarray(same), heat)
     np.testing.assert_array_equal(np.asarray(intr1), INTRINSICS.astype(np.float32))
 
@@ -261,11 +266,12 @@ def make_buffer(weights, valid, xy=None):
     n = len(weights)
     if xy is None:
         xy = np.random.default_rng(41).uniform(-2, 2, (n, 2))
+    # NumPy, for the jitted functions: `jnp` conversions would each compile a program of their own.
     return hp.Measurements(
-        jnp.asarray(xy, jnp.float32),
-        jnp.asarray(weights, jnp.float32),
-        jnp.asarray(valid, bool),
-        jnp.zeros((n, 2, 2), jnp.float32),
+        np.asarray(xy, np.float32),
+        np.asarray(weights, np.float32),
+        np.asarray(valid, bool),
+        np.zeros((n, 2, 2), np.float32),
     )
 
 
@@ -277,7 +283,7 @@ def test_age_measurements_subtracts_and_invalidates():
     weights = np.array([1.0, 0.55, 0.45, 0.3, 0.9, 0.0], np.float32)
     valid = np.array([True, True, True, True, False, False])
     buf = make_buffer(weights, valid)
-    out = _age(buf, jnp.float32(0.3), jnp.float32(0.2))
+    out = _age(buf, np.float32(0.3), np.float32(0.2))
     want_w = np.array([0.7, 0.25, 0.0, 0.0, 0.0, 0.0])
     want_valid = np.array([True, True, False, False, False, False])  # 0.15 < 0.2, 0.0 < 0.2; invalid stay invalid
     np.testing.assert_array_equal(np.asarray(out.valid), want_valid)
@@ -291,7 +297,7 @@ def test_update_buffer_aging_schedule():
     valid = [True, True, True, True, False]
     buf = make_buffer(weights, valid)
     never = make_buffer([0.9] * 5, [True] * 5)  # a valid heat map that is not delivered
-    aging, min_w = jnp.float32(0.3), jnp.float32(0.2)
+    aging, min_w = np.float32(0.3), np.float32(0.2)
     expected = []
     for n in range(1, 6):
         w = np.array(weights) - 0.3 * n
@@ -301,7 +307,7 @@ def test_update_buffer_aging_schedule():
     # Hand check of the table: 1.0 -> 0.7, 0.4, dead; 0.9 -> 0.6, 0.3, dead; 0.65 -> 0.35, dead; 0.45 -> dead.
     np.testing.assert_array_equal([e[1].sum() for e in expected], [3, 2, 0, 0, 0])
     for n in range(5):
-        buf = _update(buf, never, jnp.asarray(False), aging, min_w)
+        buf = _update(buf, never, np.asarray(False), aging, min_w)
         np.testing.assert_array_equal(np.asarray(buf.valid), expected[n][1])
         np.testing.assert_allclose(np.asarray(buf.weight), expected[n][0], atol=1e-5)
     assert not np.asarray(buf.valid).any()
@@ -310,7 +316,7 @@ def test_update_buffer_aging_schedule():
 def test_update_buffer_replaces_only_with_usable_new_measurements():
     rng = np.random.default_rng(42)
     buf = make_buffer([0.9, 0.8, 0.5, 0.0], [True, True, True, False], rng.uniform(-2, 2, (4, 2)))
-    aging, min_w = jnp.float32(0.1), jnp.float32(0.45)
+    aging, min_w = np.float32(0.1), np.float32(0.45)
     aged_w = np.array([0.8, 0.7, 0.0, 0.0])
     aged_valid = np.array([True, True, False, False])
 
@@ -323,16 +329,16 @@ def test_update_buffer_replaces_only_with_usable_new_measurements():
     new_xy = rng.uniform(-2, 2, (4, 2)).astype(np.float32)
     # Usable new measurements replace the buffer; those below l are dropped, nothing is aged.
     new = make_buffer([0.95, 0.3, 0.6, 0.8], [True, True, True, False], new_xy)
-    check(_update(buf, new, jnp.asarray(True), aging, min_w), new_xy, [0.95, 0.0, 0.6, 0.0], [True, False, True, False])
+    check(_update(buf, new, np.asarray(True), aging, min_w), new_xy, [0.95, 0.0, 0.6, 0.0], [True, False, True, False])
     old_xy = np.asarray(buf.xy)
     # has_new False: the buffer ages, the new set is ignored.
-    check(_update(buf, new, jnp.asarray(False), aging, min_w), old_xy, aged_w, aged_valid)
+    check(_update(buf, new, np.asarray(False), aging, min_w), old_xy, aged_w, aged_valid)
     # A heat map with no valid measurement counts as no input.
     empty = make_buffer([0.9, 0.9, 0.9, 0.9], [False] * 4, new_xy)
-    check(_update(buf, empty, jnp.asarray(True), aging, min_w), old_xy, aged_w, aged_valid)
+    check(_update(buf, empty, np.asarray(True), aging, min_w), old_xy, aged_w, aged_valid)
     # So does one whose valid measurements are all below l.
     weak = make_buffer([0.3, 0.2, 0.44, 0.9], [True, True, True, False], new_xy)
-    check(_update(buf, weak, jnp.asarray(True), aging, min_w), old_xy, aged_w, aged_valid)
+    check(_update(buf, weak, np.asarray(True), aging, min_w), old_xy, aged_w, aged_valid)
 
 
 def test_move_measurements_world_fixed_points():
@@ -345,7 +351,7 @@ def test_move_measurements_world_fixed_points():
     buf = make_buffer(weights, valid, xy_in)
     move = jax.jit(hp.measurements.move_measurements)
     for odo in rng.uniform([-0.3, -0.3, -0.8], [0.3, 0.3, 0.8], (3, 3)):
-        out = move(buf, jnp.asarray(odo, jnp.float32))
+        out = move(buf, np.asarray(odo, np.float32))
         c, s = np.cos(odo[2]), np.sin(odo[2])
         rot = np.array([[c, -s], [s, c]])
         want = (xy.astype(np.float64) - odo[:2]) @ rot  # rows: R^T (p - d)

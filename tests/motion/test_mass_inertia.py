@@ -4,7 +4,6 @@ noise, uniform spreads whose width follows (1.1 - pi'), the stored score, and a 
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import stats
@@ -13,16 +12,22 @@ import heatpf_jax as hp
 from heatpf_jax.motion.mass_inertia import InertiaParticles, MassInertia, MassInertiaParams, normalised_score
 from tests.conftest import SMALL_OPTIONS
 
+# The model's methods, one program each (shared by the tests): run eagerly, each of their operations would
+# compile on its own. Their inputs are NumPy, as eager `jnp` conversions compile a program each too.
+_predict = jax.jit(MassInertia().predict)
+_spawn = jax.jit(MassInertia().spawn)
+_score = jax.jit(normalised_score)
+
 
 def _inputs(odometry=(0.0, 0.0, 0.0), dt=0.1):
     return hp.StepInputs(
-        heatmap=jnp.zeros((2, 2), jnp.float32),
-        has_heatmap=jnp.asarray(False),
-        cam_to_base=jnp.eye(4),
-        odometry=jnp.asarray(odometry, jnp.float32),
-        intrinsics=jnp.ones(4, jnp.float32),
-        plane_height=jnp.float32(0.0),
-        dt=jnp.float32(dt),
+        heatmap=np.zeros((2, 2), np.float32),
+        has_heatmap=np.asarray(False),
+        cam_to_base=np.eye(4, dtype=np.float32),
+        odometry=np.asarray(odometry, np.float32),
+        intrinsics=np.ones(4, np.float32),
+        plane_height=np.float32(0.0),
+        dt=np.float32(dt),
     )
 
 
@@ -32,8 +37,8 @@ def test_noise_free_step_is_exact_kinematics_with_odometry(rng):
     score = rng.uniform(size=50).astype(np.float32)
     odom = np.array([0.2, -0.05, 0.3])
     quiet = MassInertiaParams(rho_move=0.0, rho_position=0.0, noise=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0)
-    start = InertiaParticles(jnp.asarray(xy), jnp.asarray(v), jnp.asarray(score))
-    out = MassInertia().predict(jax.random.key(0), start, _inputs(odom, 0.25), quiet)
+    start = InertiaParticles(xy, v, score)
+    out = _predict(jax.random.key(0), start, _inputs(odom, 0.25), quiet)
     c, s = np.cos(0.3), np.sin(0.3)
     rt = np.array([[c, s], [-s, c]])
     v_new = v.astype(np.float64) @ rt.T
@@ -49,8 +54,9 @@ def test_spreads_are_uniform_with_width_following_the_weight(score):
     (1.1 - pi') rho_position U + noise U. Kolmogorov-Smirnov against scipy's uniform and triangular-free sums."""
     n, dt = 20_000, 0.1
     params = MassInertiaParams(rho_move=0.2, rho_position=0.0, noise=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0)
-    start = InertiaParticles(jnp.zeros((n, 2)), jnp.zeros((n, 2)), jnp.full((n,), score, jnp.float32))
-    out = MassInertia().predict(jax.random.key(1), start, _inputs(dt=dt), params)
+    start = InertiaParticles(np.zeros((n, 2), np.float32), np.zeros((n, 2), np.float32),
+                             np.full((n,), score, np.float32))
+    out = _predict(jax.random.key(1), start, _inputs(dt=dt), params)
     a = (1.1 - score) * 0.2 / dt
     dv = np.asarray(out.v, np.float64)
     for col in range(2):
@@ -58,16 +64,16 @@ def test_spreads_are_uniform_with_width_following_the_weight(score):
     np.testing.assert_allclose(np.asarray(out.xy), 0.0, atol=1e-7)  # the new velocity moves it next step
     # Position spread alone: (1.1 - pi') rho_position U, here with rho_position = 0.3.
     params = params._replace(rho_move=1e-6, rho_position=0.3)
-    out = MassInertia().predict(jax.random.key(2), start, _inputs(dt=dt), params)
+    out = _predict(jax.random.key(2), start, _inputs(dt=dt), params)
     b = (1.1 - score) * 0.3
-    assert stats.kstest(np.asarray(out.xy[:, 0], np.float64), stats.uniform(loc=-b, scale=2 * b).cdf).pvalue > 1e-3
+    assert stats.kstest(np.asarray(out.xy, np.float64)[:, 0], stats.uniform(loc=-b, scale=2 * b).cdf).pvalue > 1e-3
 
 
 def test_normalised_score_and_spawn():
-    w = jnp.asarray([0.1, 0.4, 0.2, 0.3])
-    np.testing.assert_allclose(np.asarray(normalised_score(w)), [0.25, 1.0, 0.5, 0.75], rtol=1e-6)
-    assert np.all(np.asarray(normalised_score(jnp.zeros(3))) == 0.0)
-    new = MassInertia().spawn(jax.random.key(0), jnp.ones((5, 2)), MassInertiaParams())
+    w = np.asarray([0.1, 0.4, 0.2, 0.3], np.float32)
+    np.testing.assert_allclose(np.asarray(_score(w)), [0.25, 1.0, 0.5, 0.75], rtol=1e-6)
+    assert np.all(np.asarray(_score(np.zeros(3, np.float32))) == 0.0)
+    new = _spawn(jax.random.key(0), np.ones((5, 2), np.float32), MassInertiaParams())
     assert np.all(np.asarray(new.v) == 0.0) and np.all(np.asarray(new.score) == 0.0)  # Olufs: start at zero
 
 
@@ -78,7 +84,7 @@ def test_filter_run_keeps_scores(small_sequence):
     score = np.asarray(res.final_state.particles.score)
     # Systematic resampling always copies the best particle (weight >= 1/N), whose pi' is exactly 1.
     assert score.max() == 1.0 and score.min() >= 0.0
-    anc = np.asarray(res.info.ancestors[-1])
+    anc = np.asarray(res.info.ancestors)[-1]  # indexed in NumPy: a JAX index compiles a program
     for a in np.unique(anc):  # copies of one particle inherit one score
         assert np.unique(score[anc == a]).size == 1
     err = np.linalg.norm(np.asarray(res.info.mean) - small_sequence.ground_truth, axis=1)[-10:].mean()

@@ -22,6 +22,8 @@ _pw_vmap_k = jax.jit(jax.vmap(partial(hp.observation.particle_weights, k_max=K_M
 # Concrete k (a static Python int inside jit: no k_max given, so k itself bounds the selection).
 _pw_concrete = jax.jit(hp.observation.particle_weights, static_argnums=2)
 _k_nearest = jax.jit(partial(hp.observation.k_nearest, k_max=K_MAX))
+_empty = jax.jit(hp.measurements.empty_measurements, static_argnums=0)
+# Test inputs are NumPy throughout: eager `jnp` conversions compile a program each.
 
 
 def _grad_sum(particles, meas, k):
@@ -101,7 +103,7 @@ def make_measurements(rng, m=N_MEAS, n_valid=None, extent=4.0):
     valid[rng.choice(m, n_valid, replace=False)] = True
     # Garbage in the invalid slots: large weights, positions in the same region (often nearest to a particle).
     weight[~valid] = rng.uniform(5.0, 50.0, int((~valid).sum())).astype(np.float32)
-    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(weight), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
+    meas = hp.Measurements(xy, weight, valid, np.zeros((len(valid), 2, 2), np.float32))
     return meas, xy, weight, valid
 
 
@@ -126,8 +128,8 @@ def test_particle_weights_match_brute_force_every_k_with_padding():
         assert not valid.all() and valid.any()
         for k in range(1, K_MAX + 1):
             want = ref_weights(parts, xy, w, valid, k)
-            got_concrete = _pw_concrete(jnp.asarray(parts), meas, k)
-            got_traced = _pw(jnp.asarray(parts), meas, jnp.int32(k))
+            got_concrete = _pw_concrete(parts, meas, k)
+            got_traced = _pw(parts, meas, np.int32(k))
             worst = max(worst, rel_err(got_concrete, want), rel_err(got_traced, want))
             np.testing.assert_allclose(np.asarray(got_concrete), want, rtol=1e-5)
             np.testing.assert_allclose(np.asarray(got_traced), want, rtol=1e-5)
@@ -143,14 +145,14 @@ def test_particle_weights_garbage_in_invalid_slots_is_ignored():
     xy2, w2 = xy.copy(), w.copy()
     xy2[~valid] = rng.uniform(-1e3, 1e3, ((~valid).sum(), 2)).astype(np.float32)
     w2[~valid] = rng.uniform(-10.0, 10.0, (~valid).sum()).astype(np.float32)
-    meas2 = hp.Measurements(jnp.asarray(xy2), jnp.asarray(w2), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
+    meas2 = hp.Measurements(xy2, w2, valid, np.zeros((len(valid), 2, 2), np.float32))
     for k in (1, 5):
-        a = np.asarray(_pw(jnp.asarray(parts), meas, jnp.int32(k)))
-        b = np.asarray(_pw(jnp.asarray(parts), meas2, jnp.int32(k)))
+        a = np.asarray(_pw(parts, meas, np.int32(k)))
+        b = np.asarray(_pw(parts, meas2, np.int32(k)))
         np.testing.assert_array_equal(a, b)
         # Garbage would change the result if it were used: put each particle on top of an invalid slot.
         bad = xy[~valid][:N_PART]
-        got = np.asarray(_pw(jnp.asarray(bad), meas, jnp.int32(k)))
+        got = np.asarray(_pw(bad, meas, np.int32(k)))
         np.testing.assert_allclose(got, ref_weights(bad, xy, w, valid, k), rtol=1e-5)
 
 
@@ -160,7 +162,7 @@ def test_particle_weights_fewer_valid_than_k_sums_all_valid():
         meas, xy, w, valid = make_measurements(rng, n_valid=n_valid)
         parts = make_particles(rng)
         for k in (n_valid, n_valid + 1, K_MAX):
-            got = np.asarray(_pw(jnp.asarray(parts), meas, jnp.int32(k)))
+            got = np.asarray(_pw(parts, meas, np.int32(k)))
             want = ref_weights(parts, xy, w, valid, k)
             # Independent of the ordering: the sum over all valid measurements.
             d = np.sqrt(((parts[:, None, :].astype(np.float64) - xy[valid][None].astype(np.float64)) ** 2).sum(-1))
@@ -175,7 +177,7 @@ def test_particle_weights_buffer_smaller_than_k():
     meas, xy, w, valid = make_measurements(rng, m=5, n_valid=4)
     parts = make_particles(rng, n=20)
     for k in (3, 5, 8):
-        got = np.asarray(_pw_concrete(jnp.asarray(parts), meas, k))
+        got = np.asarray(_pw_concrete(parts, meas, k))
         np.testing.assert_allclose(got, ref_weights(parts, xy, w, valid, k), rtol=1e-5)
 
 
@@ -184,12 +186,12 @@ def test_particle_weights_no_valid_measurement_gives_ones():
     meas, _, _, _ = make_measurements(rng, n_valid=0)
     parts = make_particles(rng)
     for k in (1, 4, 8):
-        got = np.asarray(_pw(jnp.asarray(parts), meas, jnp.int32(k)))
+        got = np.asarray(_pw(parts, meas, np.int32(k)))
         np.testing.assert_array_equal(got, np.ones(N_PART, np.float32))
-    g = np.asarray(_gpw(jnp.asarray(parts), meas, jnp.int32(3), std=jnp.float32(0.5)))
+    g = np.asarray(_gpw(parts, meas, np.int32(3), std=np.float32(0.5)))
     np.testing.assert_array_equal(g, np.ones(N_PART, np.float32))
-    empty = hp.measurements.empty_measurements(N_MEAS)
-    np.testing.assert_array_equal(np.asarray(_pw(jnp.asarray(parts), empty, jnp.int32(2))), np.ones(N_PART))
+    empty = _empty(N_MEAS)
+    np.testing.assert_array_equal(np.asarray(_pw(parts, empty, np.int32(2))), np.ones(N_PART))
 
 
 def test_particle_weights_distance_floor():
@@ -202,17 +204,17 @@ def test_particle_weights_distance_floor():
     near = xy[valid][60:120] + rng.uniform(-0.004, 0.004, (60, 2)).astype(np.float32)
     parts[60:120] = near
     for k in (1, 3, 8):
-        got = np.asarray(_pw(jnp.asarray(parts), meas, jnp.int32(k)))
+        got = np.asarray(_pw(parts, meas, np.int32(k)))
         want = ref_weights(parts, xy, w, valid, k)
         np.testing.assert_allclose(got, want, rtol=1e-5)
         assert np.all(np.isfinite(got))
         # The measurement under the particle contributes w / min_distance.
         assert np.all(got[:60] >= w[valid][:60] / 0.01 * (1 - 1e-6))
     # A custom floor.
-    got = np.asarray(_pw_floor(jnp.asarray(parts), meas, jnp.int32(4)))
+    got = np.asarray(_pw_floor(parts, meas, np.int32(4)))
     np.testing.assert_allclose(got, ref_weights(parts, xy, w, valid, 4, min_distance=0.25), rtol=1e-5)
     # Gradients stay finite on top of a measurement.
-    g = np.asarray(_grad_pw(jnp.asarray(parts), meas, jnp.int32(3)))
+    g = np.asarray(_grad_pw(parts, meas, np.int32(3)))
     assert np.all(np.isfinite(g))
     np.testing.assert_allclose(g, ref_grad(parts, xy, w, valid, 3), rtol=1e-3, atol=1e-2)
 
@@ -220,14 +222,14 @@ def test_particle_weights_distance_floor():
 def test_particle_weights_traced_k_and_vmap_over_k():
     rng = np.random.default_rng(6)
     meas, xy, w, valid = make_measurements(rng)
-    parts = jnp.asarray(make_particles(rng))
+    parts = make_particles(rng)
     traced = jax.jit(lambda p, m, k: hp.observation.particle_weights(p, m, k, k_max=8))
-    ks = jnp.arange(1, K_MAX + 1, dtype=jnp.int32)
+    ks = np.arange(1, K_MAX + 1, dtype=np.int32)
     swept = np.asarray(_pw_vmap_k(parts, meas, ks))
     assert swept.shape == (K_MAX, N_PART)
     for i, k in enumerate(range(1, K_MAX + 1)):
         concrete = np.asarray(_pw_concrete(parts, meas, k))
-        np.testing.assert_allclose(np.asarray(traced(parts, meas, jnp.int32(k))), concrete, rtol=1e-6)
+        np.testing.assert_allclose(np.asarray(traced(parts, meas, np.int32(k))), concrete, rtol=1e-6)
         np.testing.assert_allclose(swept[i], concrete, rtol=1e-6)
     # More neighbours never decrease a sum of positive terms.
     assert np.all(np.diff(swept, axis=0) > 0)
@@ -236,7 +238,7 @@ def test_particle_weights_traced_k_and_vmap_over_k():
 def test_particle_weights_bad_k_max_raises():
     rng = np.random.default_rng(7)
     meas, _, _, _ = make_measurements(rng, m=10)
-    parts = jnp.asarray(make_particles(rng, n=4))
+    parts = make_particles(rng, n=4)
     with pytest.raises(ValueError):
         hp.observation.particle_weights(parts, meas, 2, k_max=0)
 
@@ -244,11 +246,11 @@ def test_particle_weights_bad_k_max_raises():
 def test_particle_weights_traced_k_without_k_max_raises():
     rng = np.random.default_rng(7)
     meas, _, _, _ = make_measurements(rng, m=10)
-    parts = jnp.asarray(make_particles(rng, n=4))
+    parts = make_particles(rng, n=4)
     with pytest.raises(ValueError):
-        jax.jit(lambda k: hp.observation.particle_weights(parts, meas, k))(jnp.int32(2))
+        jax.jit(lambda k: hp.observation.particle_weights(parts, meas, k))(np.int32(2))
     with pytest.raises(ValueError):
-        jax.jit(lambda k: hp.observation.gaussian_particle_weights(parts, meas, k, std=0.5))(jnp.int32(2))
+        jax.jit(lambda k: hp.observation.gaussian_particle_weights(parts, meas, k, std=0.5))(np.int32(2))
 
 
 def test_k_nearest_selection_mask():
@@ -256,7 +258,7 @@ def test_k_nearest_selection_mask():
     meas, xy, w, valid = make_measurements(rng, m=40, n_valid=5)
     parts = make_particles(rng, n=30)
     for k in (2, 5, 8):
-        sq, wsel, sel = _k_nearest(jnp.asarray(parts), meas, jnp.int32(k))
+        sq, wsel, sel = _k_nearest(parts, meas, np.int32(k))
         sel = np.asarray(sel)
         assert sel.shape == (30, 8)
         np.testing.assert_array_equal(sel.sum(1), np.full(30, min(k, 5)))
@@ -278,7 +280,7 @@ def test_particle_weights_gradient_matches_analytic_and_finite_differences():
     valid = np.arange(N_MEAS) < 20
     perm = rng.permutation(N_MEAS)
     xy, w, valid = xy[perm], w[perm], valid[perm]
-    meas = hp.Measurements(jnp.asarray(xy), jnp.asarray(w), jnp.asarray(valid), jnp.zeros((len(valid), 2, 2)))
+    meas = hp.Measurements(xy, w, valid, np.zeros((len(valid), 2, 2), np.float32))
 
     # Particles away from ties and from the floor: nearest distance > 0.3, neighbour-rank gaps > 0.05.
     k = 3
@@ -288,7 +290,7 @@ def test_particle_weights_gradient_matches_analytic_and_finite_differences():
     parts = cand[ok][:N_PART].astype(np.float32)
     assert parts.shape[0] == N_PART
 
-    g = np.asarray(_grad_pw(jnp.asarray(parts), meas, jnp.int32(k)))
+    g = np.asarray(_grad_pw(parts, meas, np.int32(k)))
     assert np.all(np.isfinite(g))
     want = ref_grad(parts, xy, w, valid, k)
     np.testing.assert_allclose(g, want, rtol=1e-4, atol=1e-5)
@@ -299,8 +301,8 @@ def test_particle_weights_gradient_matches_analytic_and_finite_differences():
     for axis in range(2):
         step = np.zeros((1, 2), np.float32)
         step[0, axis] = eps
-        plus = np.asarray(_pw(jnp.asarray(parts + step), meas, jnp.int32(k)), np.float64)
-        minus = np.asarray(_pw(jnp.asarray(parts - step), meas, jnp.int32(k)), np.float64)
+        plus = np.asarray(_pw(parts + step, meas, np.int32(k)), np.float64)
+        minus = np.asarray(_pw(parts - step, meas, np.int32(k)), np.float64)
         true_step = (parts + step).astype(np.float64)[:, axis] - (parts - step).astype(np.float64)[:, axis]
         fd[:, axis] = (plus - minus) / true_step
     scale = np.linalg.norm(want, axis=1, keepdims=True)
@@ -308,7 +310,7 @@ def test_particle_weights_gradient_matches_analytic_and_finite_differences():
     assert fd_err < 1e-2, fd_err
 
     # Gradient wrt the measurement weights: sum over the particles selecting j of 1 / d_ij (eq. 1 is linear in w).
-    gw = np.asarray(_grad_pw_weights(jnp.asarray(parts), meas, jnp.int32(k)))
+    gw = np.asarray(_grad_pw_weights(parts, meas, np.int32(k)))
     dist = np.sqrt(((parts[:, None].astype(np.float64) - xy[None].astype(np.float64)) ** 2).sum(-1))
     nearest = np.argsort(np.where(valid[None, :], dist, np.inf), axis=1)[:, :k]
     want_w = np.zeros(N_MEAS)
@@ -325,34 +327,36 @@ def test_gaussian_particle_weights_match_brute_force():
     worst = 0.0
     for std in (0.4, 1.3):
         for k in (1, 2, 5, 8):
-            got = np.asarray(_gpw(jnp.asarray(parts), meas, jnp.int32(k), std=jnp.float32(std)))
+            got = np.asarray(_gpw(parts, meas, np.int32(k), std=np.float32(std)))
             want = ref_gaussian(parts, xy, w, valid, k, std)
             worst = max(worst, rel_err(got, want))
             np.testing.assert_allclose(got, want, rtol=2e-5)
     # k = 1 with one measurement is the Gaussian likelihood.
     one = np.zeros(N_MEAS, bool)
     one[17] = True
-    meas1 = meas._replace(valid=jnp.asarray(one))
-    got = np.asarray(_gpw(jnp.asarray(parts), meas1, jnp.int32(1), std=jnp.float32(0.7)))
+    meas1 = meas._replace(valid=one)
+    got = np.asarray(_gpw(parts, meas1, np.int32(1), std=np.float32(0.7)))
     d2 = ((parts.astype(np.float64) - xy[17].astype(np.float64)) ** 2).sum(1)
     np.testing.assert_allclose(got, w[17] * np.exp(-d2 / (2 * 0.49)), rtol=2e-5, atol=1e-30)
     # Few valid measurements.
     meas3, xy3, w3, valid3 = make_measurements(rng, n_valid=3, extent=3.0)
-    got = np.asarray(_gpw(jnp.asarray(parts), meas3, jnp.int32(8), std=jnp.float32(1.0)))
+    got = np.asarray(_gpw(parts, meas3, np.int32(8), std=np.float32(1.0)))
     np.testing.assert_allclose(got, ref_gaussian(parts, xy3, w3, valid3, 8, 1.0), rtol=2e-5)
 
 
 def test_observation_pieces_are_logs_of_the_weight_functions():
     rng = np.random.default_rng(3)
-    particles = jnp.asarray(rng.normal(size=(30, 2)) * 2, jnp.float32)
+    particles = np.asarray(rng.normal(size=(30, 2)) * 2, np.float32)
     buf = hp.Measurements(
-        xy=jnp.asarray(rng.normal(size=(12, 2)), jnp.float32),
-        weight=jnp.asarray(rng.random(12), jnp.float32),
-        valid=jnp.asarray(rng.random(12) < 0.8),
-        footprint=jnp.zeros((12, 2, 2), jnp.float32),
+        xy=np.asarray(rng.normal(size=(12, 2)), np.float32),
+        weight=np.asarray(rng.random(12), np.float32),
+        valid=np.asarray(rng.random(12) < 0.8),
+        footprint=np.zeros((12, 2, 2), np.float32),
     )
     inv = hp.observation.InverseDistance(k_max=4, knn="dense")
-    ll = np.asarray(inv.log_likelihood(particles, buf, hp.observation.InverseDistanceParams(k=3, min_distance=0.05)),
+    # Each piece's log-likelihood as one program: run eagerly, each of its operations would compile on its own.
+    ll = np.asarray(jax.jit(inv.log_likelihood)(particles, buf,
+                                                 hp.observation.InverseDistanceParams(k=3, min_distance=0.05)),
                     np.float64)
     # NumPy brute force of eq. (1).
     m, w = np.asarray(buf.xy)[np.asarray(buf.valid)], np.asarray(buf.weight)[np.asarray(buf.valid)]
@@ -363,8 +367,8 @@ def test_observation_pieces_are_logs_of_the_weight_functions():
     floored = hp.observation.Floored(inv)
     params = floored.default_params()._replace(base=hp.observation.InverseDistanceParams(k=3, min_distance=0.05),
                                                weight_floor=0.5)
-    np.testing.assert_allclose(np.asarray(floored.log_likelihood(particles, buf, params)), np.maximum(ref, np.log(0.5)),
-                               rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(jax.jit(floored.log_likelihood)(particles, buf, params)),
+                               np.maximum(ref, np.log(0.5)), rtol=1e-5)
     assert floored.properties().base == inv.properties()
 
 
@@ -397,9 +401,9 @@ def raster_measurements(rng, side=32, spacing=0.1):
 
 def test_default_method_is_the_exact_blocked_search_and_equals_dense():
     """The default ("auto") takes the blocked kernel from AUTO_BLOCKED_MIN_SIZE slots on and gives dense's results."""
-    parts = jnp.zeros((4, 2))
+    parts = np.zeros((4, 2), np.float32)
     for size, blocked in ((AUTO_BLOCKED_MIN_SIZE - 1, False), (AUTO_BLOCKED_MIN_SIZE, True)):
-        meas = hp.measurements.empty_measurements(size)
+        meas = jax.eval_shape(partial(hp.measurements.empty_measurements, size))  # shapes only: nothing compiled
         jaxpr = str(
             jax.make_jaxpr(lambda p, m: hp.observation.particle_weights(p, m, jnp.int32(3), k_max=10))(parts, meas)
         )
@@ -408,13 +412,11 @@ def test_default_method_is_the_exact_blocked_search_and_equals_dense():
     rng = np.random.default_rng(11)
     xy, weight, valid = raster_measurements(rng)
     assert xy.shape[0] == 1024
-    particles = jnp.asarray(rng.uniform(-0.3, 3.4, (300, 2)).astype(np.float32))
+    particles = rng.uniform(-0.3, 3.4, (300, 2)).astype(np.float32)
     default, dense = _all_three(None), _all_three("dense")
     perm = rng.permutation(xy.shape[0])
     for order in (np.arange(xy.shape[0]), perm):  # raster order, then random order
-        meas = hp.Measurements(
-            jnp.asarray(xy[order]), jnp.asarray(weight[order]), jnp.asarray(valid[order]), jnp.zeros((len(order), 2, 2))
-        )
+        meas = hp.Measurements(xy[order], weight[order], valid[order], np.zeros((len(order), 2, 2), np.float32))
         # Float32 squared distances to the valid measurements, sorted: ties at the k-th are the only freedom.
         p = np.asarray(particles)
         d2 = np.sort(((p[:, None, :] - xy[valid][None]) ** 2).sum(-1, dtype=np.float32), axis=1)
@@ -422,8 +424,8 @@ def test_default_method_is_the_exact_blocked_search_and_equals_dense():
             untied = d2[:, k] - d2[:, k - 1] > 1e-6 * d2[:, k]
             assert untied.mean() > 0.95
             (w, g, (sq, ws, sel)), (w_ref, g_ref, (sq_ref, ws_ref, sel_ref)) = (
-                default(particles, meas, jnp.int32(k)),
-                dense(particles, meas, jnp.int32(k)),
+                default(particles, meas, np.int32(k)),
+                dense(particles, meas, np.int32(k)),
             )
             np.testing.assert_allclose(np.asarray(w)[untied], np.asarray(w_ref)[untied], rtol=1e-6)
             np.testing.assert_allclose(np.asarray(g)[untied], np.asarray(g_ref)[untied], rtol=1e-6)

@@ -28,6 +28,8 @@ _loglik = jax.jit(footprint_template_log_likelihood, static_argnames=("k_max", "
 _project = jax.jit(hp.measurements.project_heatmap, static_argnames="max_measurements")
 _move = jax.jit(hp.measurements.move_measurements)
 _age = jax.jit(hp.measurements.age_measurements)
+_empty = jax.jit(hp.measurements.empty_measurements, static_argnums=0)
+# Test inputs are NumPy throughout: eager `jnp` conversions and `.at[].set()` compile a program each.
 
 
 # --------------------------------------------------------------------------- references
@@ -74,10 +76,10 @@ def random_buffer(rng, m=N_MEAS, valid_share=0.75):
     footprint = rot @ (rng.uniform(0.005, 0.4, (m, 2))[:, :, None] * np.eye(2)) + rng.normal(0, 0.01, (m, 2, 2))
     valid = rng.random(m) < valid_share
     return hp.Measurements(
-        xy=jnp.asarray(np.where(valid[:, None], xy, 0.0), jnp.float32),
-        weight=jnp.asarray(np.where(valid, rng.uniform(0.3, 1.0, m), 0.0), jnp.float32),
-        valid=jnp.asarray(valid),
-        footprint=jnp.asarray(np.where(valid[:, None, None], footprint, 0.0), jnp.float32),
+        xy=np.asarray(np.where(valid[:, None], xy, 0.0), np.float32),
+        weight=np.asarray(np.where(valid, rng.uniform(0.3, 1.0, m), 0.0), np.float32),
+        valid=np.asarray(valid),
+        footprint=np.asarray(np.where(valid[:, None, None], footprint, 0.0), np.float32),
     )
 
 
@@ -103,10 +105,10 @@ def test_ground_jacobian_matches_finite_differences_of_the_projection(rng):
         uv = np.stack([rng.uniform(0, 199, 64), rng.uniform(0, 149, 64)], -1)
         jac = np.asarray(
             _jacobians(
-                jnp.asarray(uv, jnp.float32),
-                jnp.asarray(INTRINSICS, jnp.float32),
-                jnp.asarray(pose, jnp.float32),
-                jnp.float32(PLANE),
+                np.asarray(uv, np.float32),
+                np.asarray(INTRINSICS, np.float32),
+                np.asarray(pose, np.float32),
+                np.float32(PLANE),
             ),
             np.float64,
         )
@@ -129,13 +131,13 @@ def test_footprint_is_the_ground_spacing_of_neighbouring_pixels():
     uv = np.array([[cx, round(v)]])
     jac = np.asarray(
         _jacobians(
-            jnp.asarray(uv, jnp.float32),
-            jnp.asarray(INTRINSICS, jnp.float32),
-            jnp.asarray(pose, jnp.float32),
-            jnp.float32(PLANE),
-        )[0],
+            np.asarray(uv, np.float32),
+            np.asarray(INTRINSICS, np.float32),
+            np.asarray(pose, np.float32),
+            np.float32(PLANE),
+        ),
         np.float64,
-    )
+    )[0]
     here = ref_hit(uv, pose)[0]
     assert 4.0 < here[0] < 6.0
     right = ref_hit(uv + [[1.0, 0.0]], pose)[0] - here
@@ -172,11 +174,11 @@ def test_projected_heatmap_carries_footprints_that_odometry_turns(rng):
     # Odometry turns footprints with the frame (R^T F) and does not translate them; aging keeps them.
     odometry = np.array([0.3, -0.2, 0.4])
     c, s = np.cos(odometry[2]), np.sin(odometry[2])
-    moved = _move(meas, jnp.asarray(odometry, jnp.float32))
+    moved = _move(meas, np.asarray(odometry, np.float32))
     np.testing.assert_allclose(np.asarray(moved.footprint)[valid], np.array([[c, s], [-s, c]]) @ got[valid], atol=1e-6)
-    aged = _age(meas, jnp.float32(0.1), jnp.float32(0.0))
+    aged = _age(meas, np.float32(0.1), np.float32(0.0))
     np.testing.assert_array_equal(np.asarray(aged.footprint), np.asarray(meas.footprint))
-    assert not np.any(np.asarray(hp.measurements.empty_measurements(5).footprint))
+    assert not np.any(np.asarray(_empty(5).footprint))
 
 
 # --------------------------------------------------------------------------- likelihood
@@ -190,12 +192,12 @@ def test_log_likelihood_matches_numpy_brute_force(rng, method):
     particles = np.concatenate([near + rng.normal(0, 0.1, near.shape), rng.uniform(-2.5, 2.5, (N_PART // 2, 2))])
     for k, gain, template_px, min_std in [(1, 3.0, 1.0, 0.05), (3, 7.0, 0.5, 0.12), (K_MAX, 10.0, 2.0, 0.01)]:
         got = _loglik(
-            jnp.asarray(particles, jnp.float32),
+            np.asarray(particles, np.float32),
             meas,
-            jnp.int32(k),
-            gain=jnp.float32(gain),
-            template_px=jnp.float32(template_px),
-            min_std=jnp.float32(min_std),
+            np.int32(k),
+            gain=np.float32(gain),
+            template_px=np.float32(template_px),
+            min_std=np.float32(min_std),
             k_max=K_MAX,
             method=method,
         )
@@ -207,47 +209,49 @@ def test_log_likelihood_matches_numpy_brute_force(rng, method):
 def test_fewer_valid_than_k_sums_all_and_none_valid_gives_zeros(rng):
     meas = random_buffer(rng)
     particles = rng.uniform(-1.0, 1.0, (N_PART, 2))
-    few = meas._replace(valid=meas.valid & (jnp.arange(N_MEAS) < 8))
+    few = meas._replace(valid=meas.valid & (np.arange(N_MEAS) < 8))
     assert 1 <= int(few.valid.sum()) < K_MAX
     args = dict(
-        gain=jnp.float32(5.0), template_px=jnp.float32(3.0), min_std=jnp.float32(0.3), k_max=K_MAX, method="dense"
+        gain=np.float32(5.0), template_px=np.float32(3.0), min_std=np.float32(0.3), k_max=K_MAX, method="dense"
     )
-    got = _loglik(jnp.asarray(particles, jnp.float32), few, jnp.int32(K_MAX), **args)
+    got = _loglik(np.asarray(particles, np.float32), few, np.int32(K_MAX), **args)
     ref = ref_loglik(particles, few.xy, few.weight, few.valid, few.footprint, K_MAX, 5.0, 3.0, 0.3)
     np.testing.assert_allclose(np.asarray(got, np.float64), ref, rtol=2e-5, atol=5e-5)
-    none = meas._replace(valid=jnp.zeros(N_MEAS, bool))
-    np.testing.assert_array_equal(_loglik(jnp.asarray(particles, jnp.float32), none, jnp.int32(3), **args), 0.0)
+    none = meas._replace(valid=np.zeros(N_MEAS, bool))
+    np.testing.assert_array_equal(_loglik(np.asarray(particles, np.float32), none, np.int32(3), **args), 0.0)
 
 
 def test_gradients_are_finite_and_match_finite_differences(rng):
     meas = random_buffer(rng)
     near = np.asarray(meas.xy)[np.asarray(meas.valid)][:N_PART]
-    particles = jnp.asarray(near + rng.normal(0, 0.05, near.shape), jnp.float32)
-    coeff = jnp.asarray(rng.uniform(0.5, 1.5, particles.shape[0]), jnp.float32)
+    particles = np.asarray(near + rng.normal(0, 0.05, near.shape), np.float32)
+    coeff = np.asarray(rng.uniform(0.5, 1.5, particles.shape[0]), np.float32)
 
-    def total(theta, xy):
+    def total(theta, xy, meas):  # the buffer an argument: NumPy arrays cannot be indexed by traced ones
         gain, template_px, min_std = theta[0], theta[1], theta[2]
         ll = footprint_template_log_likelihood(
             xy, meas, 3, gain=gain, template_px=template_px, min_std=min_std, k_max=K_MAX, method="dense"
         )
         return jnp.sum(coeff * ll)
 
-    theta = jnp.asarray([7.0, 1.0, 0.12], jnp.float32)
+    theta = np.asarray([7.0, 1.0, 0.12], np.float32)
     value_and_grads = jax.jit(jax.value_and_grad(total, argnums=(0, 1)))
-    _, (g_theta, g_xy) = value_and_grads(theta, particles)
+    g_theta, g_xy = jax.tree.map(np.asarray, value_and_grads(theta, particles, meas)[1])
     assert np.all(np.isfinite(g_theta)) and np.all(np.isfinite(g_xy)) and np.all(np.asarray(g_theta) != 0.0)
 
     def f(theta, xy):
-        return float(value_and_grads(theta, xy)[0])  # the same compiled function
+        return float(value_and_grads(theta, xy, meas)[0])  # the same compiled function
 
     for i in range(3):
         h = 1e-3 * float(theta[i])
-        e = jnp.zeros(3, jnp.float32).at[i].set(h)
+        e = np.zeros(3, np.float32)
+        e[i] = h
         fd = (f(theta + e, particles) - f(theta - e, particles)) / (2 * h)
         assert float(g_theta[i]) == pytest.approx(fd, rel=2e-2, abs=1e-2)
     # One particle coordinate.
     h = 1e-3
-    e = jnp.zeros_like(particles).at[0, 1].set(h)
+    e = np.zeros_like(particles)
+    e[0, 1] = h
     fd = (f(theta, particles + e) - f(theta, particles - e)) / (2 * h)
     assert float(g_xy[0, 1]) == pytest.approx(fd, rel=2e-2, abs=5e-2)
 
@@ -280,20 +284,20 @@ def test_piece_properties_validation_and_filter_params():
     assert fp.observation == FootprintTemplateParams(gain=5.0, min_std=0.2)
     # The log-likelihood method is the function.
     meas = random_buffer(np.random.default_rng(5))
-    xy = jnp.asarray(np.random.default_rng(6).uniform(-1, 1, (N_PART, 2)), jnp.float32)
+    xy = np.asarray(np.random.default_rng(6).uniform(-1, 1, (N_PART, 2)), np.float32)
     piece6 = FootprintTemplate(k_max=K_MAX, knn="dense")
     p6 = FootprintTemplateParams(
-        k=jnp.int32(3), gain=jnp.float32(7.0), template_px=jnp.float32(1.0), min_std=jnp.float32(0.12)
+        k=np.int32(3), gain=np.float32(7.0), template_px=np.float32(1.0), min_std=np.float32(0.12)
     )
     np.testing.assert_array_equal(
         jax.jit(piece6.log_likelihood)(xy, meas, p6),
         _loglik(
             xy,
             meas,
-            jnp.int32(3),
-            gain=jnp.float32(7.0),
-            template_px=jnp.float32(1.0),
-            min_std=jnp.float32(0.12),
+            np.int32(3),
+            gain=np.float32(7.0),
+            template_px=np.float32(1.0),
+            min_std=np.float32(0.12),
             k_max=K_MAX,
             method="dense",
         ),
@@ -308,7 +312,7 @@ _mixture = jax.jit(footprint_kernel_log_likelihood, static_argnames=("k_max", "m
 @pytest.mark.parametrize("k", [1, 4, K_MAX])
 def test_footprint_kernel_is_the_log_of_the_brute_force_kernel_sum(rng, k):
     buf = random_buffer(rng)
-    particles = jnp.asarray(rng.uniform(-1.8, 1.8, (N_PART, 2)), jnp.float32)
+    particles = np.asarray(rng.uniform(-1.8, 1.8, (N_PART, 2)), np.float32)
     got = np.asarray(_mixture(particles, buf, k, template_px=0.7, min_std=0.04, k_max=K_MAX))
     # The template sum with gain 1 is the kernel sum itself.
     want = np.log(ref_loglik(particles, buf.xy, buf.weight, buf.valid, buf.footprint, k, 1.0, 0.7, 0.04))
@@ -321,12 +325,14 @@ def test_footprint_kernel_keeps_two_blobs_in_the_ratio_of_their_activations():
     """A mixture, not a product: a blob of k measurements of weight 0.9 beside one of weight 0.6 gives
     particles on them a likelihood ratio 0.9 / 0.6, where the template's log-domain sum gives exp(gain k 0.3)."""
     xy = np.r_[np.tile([[1.0, 0.0]], (K_MAX, 1)), np.tile([[2.0, 1.0]], (K_MAX, 1))]
-    buf = hp.Measurements(jnp.asarray(xy, jnp.float32), jnp.asarray([0.9] * K_MAX + [0.6] * K_MAX, jnp.float32),
-                          jnp.ones(2 * K_MAX, bool), jnp.asarray(np.tile(np.eye(2) * 0.01, (2 * K_MAX, 1, 1))))
-    at = jnp.asarray([[1.0, 0.0], [2.0, 1.0]], jnp.float32)
+    buf = hp.Measurements(np.asarray(xy, np.float32), np.asarray([0.9] * K_MAX + [0.6] * K_MAX, np.float32),
+                          np.ones(2 * K_MAX, bool),
+                          np.asarray(np.tile(np.eye(2) * 0.01, (2 * K_MAX, 1, 1)), np.float32))
+    at = np.asarray([[1.0, 0.0], [2.0, 1.0]], np.float32)
     got = np.asarray(_mixture(at, buf, K_MAX, template_px=1.0, min_std=0.05, k_max=K_MAX))
     assert got[0] - got[1] == pytest.approx(np.log(0.9 / 0.6), abs=1e-5)
     model = FootprintKernel(k_max=K_MAX)
     assert isinstance(model, ObservationModel) and model.default_params().k == K_MAX
-    empty = hp.Measurements(jnp.zeros((4, 2)), jnp.zeros(4), jnp.zeros(4, bool))
-    np.testing.assert_array_equal(np.asarray(model.log_likelihood(at, empty, model.default_params())), 0.0)
+    empty = hp.Measurements(np.zeros((4, 2), np.float32), np.zeros(4, np.float32), np.zeros(4, bool),
+                            np.zeros((4, 2, 2), np.float32))  # the zero footprint, in NumPy
+    np.testing.assert_array_equal(np.asarray(jax.jit(model.log_likelihood)(at, empty, model.default_params())), 0.0)

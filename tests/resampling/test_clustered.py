@@ -15,6 +15,17 @@ import heatpf_jax as hp
 from heatpf_jax.numerics import order_by_weight
 from heatpf_jax.resampling.clustered import ClusterParams, ClusterResampling, cluster_counts, resample_by_cluster
 
+# The functions tested directly, one program each (shared by the tests): run eagerly, each of their operations
+# would compile on its own. Their inputs are NumPy, as eager `jnp` conversions compile a program each too.
+_cluster_counts = jax.jit(cluster_counts, static_argnums=2)
+_ess_resample = jax.jit(hp.resampling.ESSResampling().resample)
+
+
+@jax.jit
+def _order(log_w):
+    """The step's order by weight, of ``exp(log_w)``."""
+    return order_by_weight(jnp.exp(log_w))
+
 
 def _counts_reference(cw, valid, n, min_share):
     valid = valid & (cw > 0)
@@ -36,7 +47,7 @@ def test_counts_are_largest_remainder_with_a_floor(rng, min_share):
         valid = np.array([True, True, True, False, True])
         cw = np.where(valid, cw, 0.0)
         cw = cw / cw.sum()
-        got = np.asarray(cluster_counts(jnp.asarray(cw, jnp.float32), jnp.asarray(valid), 200, min_share))
+        got = np.asarray(_cluster_counts(np.asarray(cw, np.float32), valid, 200, min_share))
         assert got.sum() == 200 and np.all(got[~valid] == 0)
         np.testing.assert_array_equal(got, _counts_reference(cw.astype(np.float32), valid, 200, min_share))
 
@@ -67,9 +78,9 @@ def test_each_cluster_gets_its_count_and_is_resampled_systematically(rng, min_sh
             np.asarray(x)
             for x in _by_cluster(
                 jax.random.key(seed),
-                jnp.log(jnp.asarray(w, jnp.float32)),
-                jnp.asarray(labels),
-                jnp.asarray(valid),
+                jnp.log(np.asarray(w, np.float32)),
+                labels,
+                valid,
                 min_share,
                 n,
             )
@@ -95,7 +106,7 @@ def test_weighted_estimate_stays_unbiased_with_a_floor(rng):
     w, labels = _two_clusters(rng, n, weak=0.01)
     f = rng.normal(size=n)
     keys = jax.random.split(jax.random.key(3), 400)
-    log_w = jnp.log(jnp.asarray(w, jnp.float32))
+    log_w = jnp.log(np.asarray(w, np.float32))
     run = jax.vmap(lambda k: _by_cluster(k, log_w, jnp.asarray(labels), jnp.asarray([True, True, False]), 0.25, n))
     anc, new_log_w, _ = run(keys)
     est = np.sum(np.exp(np.asarray(new_log_w)) * f[np.asarray(anc)], axis=1)
@@ -108,11 +119,11 @@ _cluster_resample = jax.jit(ClusterResampling().resample)  # one compilation for
 
 def test_one_cluster_is_plain_resampling(rng):
     n = 128
-    log_w = jnp.asarray(np.log(rng.dirichlet(np.ones(n))), jnp.float32)
-    xy = jnp.asarray(rng.normal(scale=0.05, size=(n, 2)), jnp.float32)  # one blob, far below the bandwidth
-    order = order_by_weight(jnp.exp(log_w))
+    log_w = np.asarray(np.log(rng.dirichlet(np.ones(n))), np.float32)
+    xy = np.asarray(rng.normal(scale=0.05, size=(n, 2)), np.float32)  # one blob, far below the bandwidth
+    order = _order(log_w)
     key = jax.random.key(7)
-    plain = hp.resampling.ESSResampling().resample(key, xy, log_w, order, hp.resampling.ESSParams(1.0))
+    plain = _ess_resample(key, xy, log_w, order, hp.resampling.ESSParams(1.0))
     ours = _cluster_resample(key, xy, log_w, order, ClusterParams(bandwidth=0.5))
     np.testing.assert_array_equal(np.asarray(ours.ancestors), np.asarray(plain.ancestors))
     np.testing.assert_allclose(np.asarray(ours.log_weights), np.asarray(plain.log_weights), atol=1e-5)
@@ -124,17 +135,17 @@ def test_a_weak_second_object_survives_cluster_wise_resampling(rng):
     n = 128
     xy = np.concatenate([rng.normal([1.0, 0.0], 0.05, (64, 2)), rng.normal([1.0, 2.0], 0.05, (64, 2))])
     w = np.where(np.arange(n) < 64, 0.97 / 64, 0.03 / 64)
-    log_w = jnp.asarray(np.log(w), jnp.float32)
-    order = order_by_weight(jnp.exp(log_w))
+    log_w = np.asarray(np.log(w), np.float32)
+    order = _order(log_w)
     res = _cluster_resample(
-        jax.random.key(0), jnp.asarray(xy, jnp.float32), log_w, order, ClusterParams(bandwidth=0.3, min_share=0.15)
+        jax.random.key(0), np.asarray(xy, np.float32), log_w, order, ClusterParams(bandwidth=0.3, min_share=0.15)
     )
     second = np.asarray(res.ancestors) >= 64
     assert second.sum() >= 0.15 * n
     assert np.exp(np.asarray(res.log_weights))[second].sum() == pytest.approx(0.03, rel=1e-3)
     # Not resampled below the ESS threshold: every particle stays in its slot.
     kept = _cluster_resample(
-        jax.random.key(0), jnp.asarray(xy, jnp.float32), log_w, order, ClusterParams(resample_threshold=0.0)
+        jax.random.key(0), np.asarray(xy, np.float32), log_w, order, ClusterParams(resample_threshold=0.0)
     )
     np.testing.assert_array_equal(np.asarray(kept.ancestors), np.arange(n))
 

@@ -31,7 +31,8 @@ def _draw_jit(keys, weights, name: str, num_samples: int):
 def _draw(name: str, weights: np.ndarray, num_samples: int, seed: int = 0) -> np.ndarray:
     """``[NUM_KEYS, num_samples]`` indices from independent keys (one compilation per name and shape)."""
     keys = jax.random.split(jax.random.key(seed), NUM_KEYS)
-    return np.asarray(_draw_jit(keys, jnp.asarray(weights, jnp.float32), name=name, num_samples=num_samples))
+    # NumPy weights: an eager `jnp` conversion would compile a program per shape.
+    return np.asarray(_draw_jit(keys, np.asarray(weights, np.float32), name=name, num_samples=num_samples))
 
 
 def _counts(indices: np.ndarray, n: int) -> np.ndarray:
@@ -66,6 +67,24 @@ def _dirichlet_away_from_integers(rng: np.random.Generator, n: int, m: int) -> n
         if np.min(np.abs(mw - np.round(mw))) > 1e-3:
             return w.astype(np.float32)
     raise AssertionError("could not draw weights away from integers")
+
+
+# The functions tested directly, one program each: run eagerly, each of their operations would compile on its own.
+_systematic = jax.jit(hp.resampling.systematic, static_argnums=2)
+_ess = jax.jit(hp.resampling.effective_sample_size)
+_ess_trigger = jax.jit(hp.resampling.ess_trigger)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _resample_piece(piece, key, w, resample_threshold):
+    """``(log w, piece.resample(...))`` with the step's order of ``w`` by weight (through ``exp(log w)``): one
+    program for both thresholds."""
+    from heatpf_jax.numerics import order_by_weight
+
+    log_w = jnp.log(w)
+    order = order_by_weight(jnp.exp(log_w))
+    return log_w, piece.resample(key, jnp.zeros((log_w.shape[0], 2)), log_w, order,
+                                 hp.resampling.ESSParams(resample_threshold))
 
 
 # Two shapes shared by every statistical test (each name and shape compiles once):
@@ -204,7 +223,7 @@ def test_systematic_never_selects_trailing_zero_weight():
     w = np.ones(1000, np.float32)
     w[-1] = 0.0
     # jax.random.key(3593) draws the offset u = 1 - 2**-24 (on jax 0.10 CPU); (999 + u) / 1000 == 1.0 in float32.
-    idx = np.asarray(hp.resampling.systematic(jax.random.key(3593), jnp.asarray(w), 1000))
+    idx = np.asarray(_systematic(jax.random.key(3593), w, 1000))
     assert np.all(w[idx] > 0), f"zero-weight index selected: {sorted(set(idx[w[idx] == 0].tolist()))}"
 
 
@@ -249,42 +268,37 @@ def test_indices_are_non_decreasing(name):
 
 
 def test_ess_uniform_and_one_hot():
+    # NumPy weights here and below: eager `jnp` and `.at[].set()` compile a program each.
     for n in (1, 7, 500):
-        assert float(hp.resampling.effective_sample_size(jnp.full((n,), 1.0 / n, jnp.float32))) == pytest.approx(
-            n, rel=1e-5
-        )
+        assert float(_ess(np.full((n,), 1.0 / n, np.float32))) == pytest.approx(n, rel=1e-5)
         # Unnormalised uniform weights give the same.
-        assert float(hp.resampling.effective_sample_size(jnp.full((n,), 3.5, jnp.float32))) == pytest.approx(
-            n, rel=1e-5
-        )
-    one_hot = jnp.zeros((64,), jnp.float32).at[17].set(0.25)
-    assert float(hp.resampling.effective_sample_size(one_hot)) == pytest.approx(1.0, rel=1e-6)
+        assert float(_ess(np.full((n,), 3.5, np.float32))) == pytest.approx(n, rel=1e-5)
+    one_hot = np.zeros((64,), np.float32)
+    one_hot[17] = 0.25
+    assert float(_ess(one_hot)) == pytest.approx(1.0, rel=1e-6)
 
 
 def test_ess_matches_numpy(rng):
     w = rng.gamma(0.3, size=200)
     ref = w.sum() ** 2 / np.sum(w**2)
-    got = float(hp.resampling.effective_sample_size(jnp.asarray(w, jnp.float32)))
+    got = float(_ess(np.asarray(w, np.float32)))
     assert got == pytest.approx(ref, rel=1e-5)
     # Two equal survivors: ESS = 2.
-    two = jnp.zeros((10,), jnp.float32).at[jnp.array([2, 8])].set(1.0)
-    assert float(hp.resampling.effective_sample_size(two)) == pytest.approx(2.0, rel=1e-6)
+    two = np.zeros((10,), np.float32)
+    two[[2, 8]] = 1.0
+    assert float(_ess(two)) == pytest.approx(2.0, rel=1e-6)
 
 
 def test_ess_resampling_piece_ancestors_and_ranks(rng):
     """Resampled: ancestors follow the weights and slot i has rank i; not resampled: identity and weight ranks."""
     import math
 
-    from heatpf_jax.numerics import order_by_weight
-
     n = 64
     w = rng.random(n).astype(np.float32) ** 4
     w /= w.sum()
-    log_w = jnp.log(jnp.asarray(w))
-    order = order_by_weight(jnp.exp(log_w))
     piece = hp.resampling.ESSResampling(resampler=hp.resampling.systematic)
     ess = 1.0 / np.sum(w.astype(np.float64) ** 2)
-    res = piece.resample(jax.random.key(0), jnp.zeros((log_w.shape[0], 2)), log_w, order, hp.resampling.ESSParams(1.0))
+    log_w, res = _resample_piece(piece, jax.random.key(0), w, 1.0)
     assert bool(res.resampled) and float(res.ess) == pytest.approx(ess, rel=1e-4)
     np.testing.assert_array_equal(np.asarray(res.rank), np.arange(n))
     counts = np.bincount(np.asarray(res.ancestors), minlength=n)
@@ -293,7 +307,7 @@ def test_ess_resampling_piece_ancestors_and_ranks(rng):
     anc = np.asarray(res.ancestors)
     assert np.all(np.diff(w[anc]) <= 1e-7)
     np.testing.assert_allclose(np.asarray(res.log_weights), -math.log(n), rtol=1e-6)
-    kept = piece.resample(jax.random.key(0), jnp.zeros((log_w.shape[0], 2)), log_w, order, hp.resampling.ESSParams(0.0))
+    kept = _resample_piece(piece, jax.random.key(0), w, 0.0)[1]
     assert not bool(kept.resampled)
     np.testing.assert_array_equal(np.asarray(kept.ancestors), np.arange(n))
     np.testing.assert_array_equal(np.asarray(kept.rank), np.argsort(np.argsort(-w, kind="stable"), kind="stable"))
@@ -305,7 +319,7 @@ def test_ess_trigger_against_numpy():
     rng = np.random.default_rng(3)
     w = rng.gamma(0.3, size=50)
     w /= w.sum()
-    ess, below = hp.resampling.ess_trigger(jnp.asarray(w, jnp.float32), 0.5)
+    ess, below = _ess_trigger(np.asarray(w, np.float32), 0.5)
     np.testing.assert_allclose(float(ess), 1.0 / np.sum(w**2), rtol=1e-5)
     assert bool(below) == (1.0 / np.sum(w**2) < 25.0)
-    assert not bool(hp.resampling.ess_trigger(jnp.full(8, 1 / 8), 0.99)[1])
+    assert not bool(_ess_trigger(np.full(8, 1 / 8, np.float32), 0.99)[1])
