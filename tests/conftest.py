@@ -156,3 +156,17 @@ def step_inputs(seq: hp.Sequence, t: int, *, odometry=(0.0, 0.0, 0.0), has_heatm
         plane_height=jnp.asarray(seq.ball_radius, jnp.float32),
         dt=jnp.asarray(seq.dt, jnp.float32),
     )
+
+
+def blank_inputs(odometry=(0.0, 0.0, 0.0), dt: float = 0.1, has_heatmap: bool = False):
+    """One step's ``StepInputs`` for the pieces that read only the odometry, the period and whether a heat map came
+    (a 2 x 2 blank heat map, an identity camera). NumPy: built with ``jnp`` each field would compile a program."""
+    return hp.StepInputs(
+        heatmap=np.zeros((2, 2), np.float32),
+        has_heatmap=np.asarray(has_heatmap),
+        cam_to_base=np.eye(4, dtype=np.float32),
+        odometry=np.asarray(odometry, np.float32),
+        intrinsics=np.ones(4, np.float32),
+        plane_height=np.float32(0.0),
+        dt=np.float32(dt),
+    )

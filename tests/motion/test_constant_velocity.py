@@ -13,6 +13,7 @@ import pytest
 import heatpf_jax as hp
 from heatpf_jax.baselines.kalman import KalmanState, kalman_predict
 from heatpf_jax.motion.constant_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
+from tests.conftest import blank_inputs
 
 # Through `jit`, Python-float numbers static as they are eagerly: run eagerly, each operation compiles on its own.
 _kalman_predict = jax.jit(kalman_predict, static_argnums=(1, 2))
@@ -23,21 +24,12 @@ def _predict(key, particles, inputs, params):
     return ConstantVelocity().predict(key, particles, inputs, params)
 
 
-def _inputs(odometry=(0.0, 0.0, 0.0), dt=0.1):
-    # NumPy: in `jnp` each field is a program compiled on its own.
-    return hp.StepInputs(
-        heatmap=np.zeros((2, 2), np.float32), has_heatmap=np.asarray(False), cam_to_base=np.eye(4, dtype=np.float32),
-        odometry=np.asarray(odometry, np.float32), intrinsics=np.ones(4, np.float32),
-        plane_height=np.float32(0.0), dt=np.float32(dt),
-    )
-
-
 def test_noise_free_step_is_exact_kinematics_with_odometry(rng):
     xy = rng.normal(size=(50, 2)).astype(np.float32)
     v = rng.normal(size=(50, 2)).astype(np.float32)
     odom = np.array([0.2, -0.05, 0.3])
     quiet = ConstantVelocityParams(0.0, 0.0, 0.0, 0.0, 0.0)
-    out = _predict(jax.random.key(0), VelocityParticles(xy, v), _inputs(odom, 0.25), quiet)
+    out = _predict(jax.random.key(0), VelocityParticles(xy, v), blank_inputs(odom, 0.25), quiet)
     c, s = np.cos(0.3), np.sin(0.3)
     rt = np.array([[c, s], [-s, c]])
     v_new = v.astype(np.float64) @ rt.T
@@ -52,7 +44,7 @@ def test_process_noise_matches_the_kalman_baseline():
     params = ConstantVelocityParams(accel_std=2.0, diffusion_std=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0,
                                     spawn_speed_std=0.0)
     start = VelocityParticles(np.zeros((n, 2), np.float32), np.zeros((n, 2), np.float32))
-    out = _predict(jax.random.key(1), start, _inputs(dt=0.2), params)
+    out = _predict(jax.random.key(1), start, blank_inputs(dt=0.2), params)
     samples = np.concatenate([np.asarray(out.xy), np.asarray(out.v)], axis=1).astype(np.float64)
     cov = np.cov(samples.T)
     q = np.asarray(_kalman_predict(KalmanState(np.zeros(4, np.float32), np.zeros((4, 4), np.float32)), 0.2, 2.0).cov,

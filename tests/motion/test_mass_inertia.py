@@ -10,25 +10,13 @@ from scipy import stats
 
 import heatpf_jax as hp
 from heatpf_jax.motion.mass_inertia import InertiaParticles, MassInertia, MassInertiaParams, normalised_score
-from tests.conftest import SMALL_OPTIONS
+from tests.conftest import SMALL_OPTIONS, blank_inputs
 
 # The model's methods, one program each (shared by the tests): run eagerly, each of their operations would
 # compile on its own. Their inputs are NumPy, as eager `jnp` conversions compile a program each too.
 _predict = jax.jit(MassInertia().predict)
 _spawn = jax.jit(MassInertia().spawn)
 _score = jax.jit(normalised_score)
-
-
-def _inputs(odometry=(0.0, 0.0, 0.0), dt=0.1):
-    return hp.StepInputs(
-        heatmap=np.zeros((2, 2), np.float32),
-        has_heatmap=np.asarray(False),
-        cam_to_base=np.eye(4, dtype=np.float32),
-        odometry=np.asarray(odometry, np.float32),
-        intrinsics=np.ones(4, np.float32),
-        plane_height=np.float32(0.0),
-        dt=np.float32(dt),
-    )
 
 
 def test_noise_free_step_is_exact_kinematics_with_odometry(rng):
@@ -38,7 +26,7 @@ def test_noise_free_step_is_exact_kinematics_with_odometry(rng):
     odom = np.array([0.2, -0.05, 0.3])
     quiet = MassInertiaParams(rho_move=0.0, rho_position=0.0, noise=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0)
     start = InertiaParticles(xy, v, score)
-    out = _predict(jax.random.key(0), start, _inputs(odom, 0.25), quiet)
+    out = _predict(jax.random.key(0), start, blank_inputs(odom, 0.25), quiet)
     c, s = np.cos(0.3), np.sin(0.3)
     rt = np.array([[c, s], [-s, c]])
     v_new = v.astype(np.float64) @ rt.T
@@ -56,7 +44,7 @@ def test_spreads_are_uniform_with_width_following_the_weight(score):
     params = MassInertiaParams(rho_move=0.2, rho_position=0.0, noise=0.0, odom_trans_noise=0.0, odom_rot_noise=0.0)
     start = InertiaParticles(np.zeros((n, 2), np.float32), np.zeros((n, 2), np.float32),
                              np.full((n,), score, np.float32))
-    out = _predict(jax.random.key(1), start, _inputs(dt=dt), params)
+    out = _predict(jax.random.key(1), start, blank_inputs(dt=dt), params)
     a = (1.1 - score) * 0.2 / dt
     dv = np.asarray(out.v, np.float64)
     for col in range(2):
@@ -64,7 +52,7 @@ def test_spreads_are_uniform_with_width_following_the_weight(score):
     np.testing.assert_allclose(np.asarray(out.xy), 0.0, atol=1e-7)  # the new velocity moves it next step
     # Position spread alone: (1.1 - pi') rho_position U, here with rho_position = 0.3.
     params = params._replace(rho_move=1e-6, rho_position=0.3)
-    out = _predict(jax.random.key(2), start, _inputs(dt=dt), params)
+    out = _predict(jax.random.key(2), start, blank_inputs(dt=dt), params)
     b = (1.1 - score) * 0.3
     assert stats.kstest(np.asarray(out.xy, np.float64)[:, 0], stats.uniform(loc=-b, scale=2 * b).cdf).pvalue > 1e-3
 

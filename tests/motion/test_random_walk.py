@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import heatpf_jax as hp
+from tests.conftest import blank_inputs
 
 N_STAT = 4000
 
@@ -229,11 +230,7 @@ def test_motion_pieces():
     """RandomWalk is move_and_diffuse on the positions; DiffusionOnly ignores the odometry."""
     # NumPy inputs and the three calls in one program: eagerly each operation compiles a program of its own.
     xy = np.random.default_rng(0).normal(size=(100, 2)).astype(np.float32)
-    inputs = hp.StepInputs(
-        heatmap=np.zeros((2, 2), np.float32), has_heatmap=np.asarray(False), cam_to_base=np.eye(4, dtype=np.float32),
-        odometry=np.array([0.3, 0.1, 0.2], np.float32), intrinsics=np.ones(4, np.float32), plane_height=np.float32(0.0),
-        dt=np.float32(0.1),
-    )
+    inputs = blank_inputs((0.3, 0.1, 0.2))
     key = jax.random.key(4)
 
     @jax.jit

@@ -9,7 +9,7 @@ import numpy as np
 
 from heatpf_jax.motion.constant_velocity import ConstantVelocity, ConstantVelocityParams, VelocityParticles
 from heatpf_jax.motion.rolling_ball import RollingBall, RollingBallParams, roll
-from tests.motion.test_constant_velocity import _inputs
+from tests.conftest import blank_inputs
 
 QUIET = RollingBallParams(friction=0.0, kick_rate=0.0, kick_speed_std=0.0, accel_std=0.0, diffusion_std=0.0,
                           odom_trans_noise=0.0, odom_rot_noise=0.0)
@@ -50,7 +50,7 @@ def test_roll_is_the_integral_of_a_constant_deceleration(rng):
 def test_without_friction_and_kicks_it_is_the_constant_velocity_model(rng):
     xy = rng.normal(size=(64, 2)).astype(np.float32)
     v = rng.normal(size=(64, 2)).astype(np.float32)
-    inputs = _inputs((0.2, -0.05, 0.3), 0.25)
+    inputs = blank_inputs((0.2, -0.05, 0.3), 0.25)
     got = PREDICT(jax.random.key(0), VelocityParticles(xy, v), inputs, QUIET)
     want = jax.jit(ConstantVelocity().predict)(jax.random.key(0), VelocityParticles(xy, v), inputs,
                                                ConstantVelocityParams(0.0, 0.0, 0.0, 0.0, 0.0))
@@ -62,7 +62,7 @@ def test_kicks_are_a_poisson_share_with_the_impulse_spread():
     n, rate, dt, std = 100_000, 2.0, 0.1, 1.5
     params = QUIET._replace(kick_rate=rate, kick_speed_std=std)
     out = PREDICT(jax.random.key(3), VelocityParticles(np.zeros((n, 2), np.float32), np.zeros((n, 2), np.float32)),
-                  _inputs(dt=dt), params)
+                  blank_inputs(dt=dt), params)
     v = np.asarray(out.v, np.float64)
     kicked = np.any(v != 0.0, axis=1)
     p = 1.0 - np.exp(-rate * dt)
@@ -75,7 +75,7 @@ def test_gradients_flow_to_friction_and_stds():
     start = VelocityParticles(np.zeros((256, 2), np.float32), np.full((256, 2), 0.8, np.float32))
 
     def final_x(params):
-        out = RollingBall().predict(jax.random.key(4), start, _inputs(dt=0.1), params)
+        out = RollingBall().predict(jax.random.key(4), start, blank_inputs(dt=0.1), params)
         return jnp.mean(out.xy[:, 0]) + jnp.mean(out.v[:, 0] ** 2)
 
     grads = jax.jit(jax.grad(final_x))(RollingBallParams())  # one program: eager ops compile one by one
